@@ -1,0 +1,66 @@
+"""The ``station`` command line.
+
+Core sub-commands are defined here; packages that the core may not import (``sim``, ``drivers``)
+add theirs through the entry-point group ``station.cli``: each entry point is a function
+``register(subparsers)`` that adds its sub-parser and sets ``func`` (``args -> exit code``).
+
+Exit codes: 0 success, 1 a measurement or device failed, 2 usage error (argparse's own).
+Results go to stdout; progress and logs to stderr only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from collections.abc import Callable, Sequence
+from importlib.metadata import entry_points
+
+from station import __version__
+from station.commands import CORE_COMMANDS
+
+log = logging.getLogger(__name__)
+
+CLI_GROUP = "station.cli"
+Handler = Callable[[argparse.Namespace], int]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="station",
+        description="Robot calibration station: measure crossed-groove artifact images, run sessions.",
+    )
+    parser.add_argument("--version", action="version", version=f"station {__version__}")
+    parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output on stderr")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for register_core in CORE_COMMANDS:
+        register_core(sub)
+    for ep in sorted(entry_points(group=CLI_GROUP), key=lambda e: e.name):
+        try:
+            register = ep.load()
+        except ImportError as exc:  # a plugin whose dependencies are absent must not break the CLI
+            log.warning("station: sub-commands of %s unavailable: %s", ep.name, exc)
+            continue
+        register(sub)
+    return parser
+
+
+def _configure_logging(verbosity: int) -> None:
+    level = logging.WARNING - 10 * min(verbosity, 2)
+    logging.basicConfig(level=level, stream=sys.stderr, format="%(levelname)s %(name)s: %(message)s")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    _configure_logging(args.verbose)
+    handler: Handler = args.func
+    try:
+        return handler(args)
+    except KeyboardInterrupt:
+        print("station: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
