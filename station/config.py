@@ -41,7 +41,7 @@ def factory(kind: str, name: str) -> Callable[..., Any]:
     loaded = eps[key].load()
     if not callable(loaded):
         raise ConfigurationError(f"entry point {key} is not callable")
-    return loaded  # type: ignore[no-any-return]
+    return loaded
 
 
 def build(kind: str, name: str, /, **options: Any) -> Any:

@@ -42,6 +42,23 @@ class NotSupportedError(DeviceError):
     """The device has no such ability (e.g. gain on a frame grabber)."""
 
 
+class ControllerError(DeviceError):
+    """The controller refused or failed a command; ``controller_text`` is what it printed.
+
+    Drivers raise subclasses for the errors they recognise (arm power off, joint limit, not homed ...);
+    the message says what the operator should do.
+    """
+
+    def __init__(self, message: str, *, controller_text: str = "", code: int | None = None) -> None:
+        super().__init__(message)
+        self.controller_text = controller_text
+        self.code = code
+
+
+class MotionStoppedError(DeviceError):
+    """A motion was stopped (``stop()``) before reaching its target; re-read the position before going on."""
+
+
 # --------------------------------------------------------------------------- robot
 
 JOINT_COUNT = 6
@@ -49,7 +66,11 @@ JOINT_COUNT = 6
 
 @dataclass(frozen=True)
 class RobotStatus:
-    """What the controller reports; a field it cannot report is ``None`` (unknown), never a guess."""
+    """What the controller reports; a field it cannot report is ``None`` (unknown), never a guess.
+
+    ``speed_pct`` is the speed override (percent of maximum); ``last_error`` the last controller error
+    text this connection saw (``None`` when there was none).
+    """
 
     power: bool | None
     homed: bool | None
@@ -62,8 +83,9 @@ class RobotStatus:
 class RobotPosition:
     """Joint angles (deg) attained and commanded, and the controller's WORLD row.
 
-    ``world_mm_deg`` is ``(x, y, z, z_rot, y_rot, x_rot)`` as the controller prints it (mm, deg),
-    or ``None`` where the controller does not report it.
+    ``joints_deg`` is the attained (encoder) position, ``commanded_joints_deg`` the set-point.
+    ``world_mm_deg`` is ``(x, y, z, z_rot, y_rot, x_rot)`` as the controller prints it for the attained
+    position (mm, deg), or ``None`` where the controller does not report it.
     """
 
     joints_deg: tuple[float, ...]
@@ -73,7 +95,14 @@ class RobotPosition:
 
 @runtime_checkable
 class Robot(Protocol):
-    """A six-joint arm moved in joint space (degrees)."""
+    """A six-joint arm moved in joint space (degrees).
+
+    Every motion is checked on the host (joint limits, maximum step, keep-out) before anything is
+    sent: a rejected motion raises ``MotionRejectedError`` and leaves the arm untouched. Motions
+    return when the controller has accepted them; ``wait_settled`` blocks until the arm is still.
+    Controller refusals raise ``ControllerError`` subclasses; a lost link ``DeviceConnectionError``
+    (``connect()`` again re-reads the arm state).
+    """
 
     def connect(self) -> None:
         """Open the link and read the arm's state."""
@@ -103,7 +132,7 @@ class Robot(Protocol):
         """Set the speed override, in percent of maximum."""
 
     def stop(self) -> None:
-        """Stop any motion now."""
+        """Stop any motion now (callable from another thread while a motion is in progress)."""
 
     def wait_settled(self, timeout_s: float | None = None) -> None:
         """Block until the arm has stopped moving (raise DeviceTimeoutError after ``timeout_s``)."""
@@ -183,6 +212,7 @@ __all__ = [
     "JOINT_COUNT",
     "Camera",
     "CameraStatus",
+    "ControllerError",
     "DeviceConnectionError",
     "DeviceError",
     "DeviceProtocolError",
@@ -190,6 +220,7 @@ __all__ = [
     "Frame",
     "ImageArray",
     "MotionRejectedError",
+    "MotionStoppedError",
     "NotSupportedError",
     "Robot",
     "RobotPosition",

@@ -4,8 +4,19 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
-SubParsers = argparse._SubParsersAction  # type: ignore[type-arg]
+if TYPE_CHECKING:
+    SubParsers = argparse._SubParsersAction[argparse.ArgumentParser]
+else:
+    SubParsers = argparse._SubParsersAction
 Register = Callable[[SubParsers], None]
 
-CORE_COMMANDS: list[Register] = []
+
+def _core() -> list[Register]:
+    from station.commands import measure, validate
+
+    return [measure.register, validate.register]
+
+
+CORE_COMMANDS: list[Register] = _core()

@@ -1,0 +1,47 @@
+"""Options shared by the measuring sub-commands."""
+
+from __future__ import annotations
+
+import argparse
+
+from pydantic import ValidationError
+
+from station.batch import default_jobs
+from station.vision import MeasureParams, parse_assignments
+
+
+def add_measure_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--mode", choices=["paper", "precise"], default=None, help="algorithm (default: paper)"
+    )
+    parser.add_argument(
+        "--set",
+        dest="assignments",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="set a parameter (case-insensitive names, e.g. --set TESTWIDTH=5 --set filter=gauss)",
+    )
+    parser.add_argument(
+        "-j",
+        "--jobs",
+        type=int,
+        default=None,
+        help=f"worker processes (default: all cores, {default_jobs()})",
+    )
+
+
+def params_from_args(parser: argparse.ArgumentParser, args: argparse.Namespace) -> MeasureParams:
+    """Build the parameter model; a bad --set is a usage error (exit 2) naming the parameter."""
+    try:
+        values: dict[str, object] = dict(parse_assignments(args.assignments))
+        if args.mode is not None:
+            values["mode"] = args.mode
+        return MeasureParams.model_validate(values)
+    except ValueError as exc:
+        if isinstance(exc, ValidationError):
+            detail = "; ".join(
+                f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in exc.errors(include_url=False)
+            )
+            parser.error(f"invalid parameter: {detail}")
+        parser.error(str(exc))

@@ -1,0 +1,74 @@
+"""The measurement core: pure functions from an image and parameters to a Measurement.
+
+Imports nothing of the project (checked by tools/check_layers.py). Stages, each testable alone:
+``apply_filter`` (3.2.1), ``directional_responses``/``apply_threshold`` (3.2.2-3), ``segment_edge``
+(3.2.4 TestBox), ``intensity_moment`` (eqs. 7-8), ``recursive_fit`` (3.2.4), ``vertices``,
+``square_homography`` and ``centre`` (3.2.5-3.2.6).
+"""
+
+from station.vision._edges import EDGES, Edge, apply_threshold, directional_responses
+from station.vision._errors import (
+    EdgeNotFoundError,
+    GeometryError,
+    ImageQualityError,
+    InvalidImageError,
+    MeasurementError,
+)
+from station.vision._filters import apply_filter, gauss_kernel_7x7
+from station.vision._geometry import (
+    apply_homography,
+    centre,
+    intersect,
+    normal_form,
+    square_homography,
+    vertices,
+)
+from station.vision._image import check_quality, to_gray8
+from station.vision._linefit import RecursiveFit, recursive_fit
+from station.vision._measure import measure
+from station.vision._moment import intensity_moment
+from station.vision._params import (
+    NOMINAL_GROOVE_WIDTH_MM,
+    SEED_GAUSS_SIGMA_PX,
+    MeasureParams,
+    Mode,
+    parse_assignments,
+)
+from station.vision._result import EdgeFit, Measurement
+from station.vision._testbox import acceptance_mask, segment_edge, testbox_scan
+
+__all__ = [
+    "EDGES",
+    "NOMINAL_GROOVE_WIDTH_MM",
+    "SEED_GAUSS_SIGMA_PX",
+    "Edge",
+    "EdgeFit",
+    "EdgeNotFoundError",
+    "GeometryError",
+    "ImageQualityError",
+    "InvalidImageError",
+    "MeasureParams",
+    "Measurement",
+    "MeasurementError",
+    "Mode",
+    "RecursiveFit",
+    "acceptance_mask",
+    "apply_filter",
+    "apply_homography",
+    "apply_threshold",
+    "centre",
+    "check_quality",
+    "directional_responses",
+    "gauss_kernel_7x7",
+    "intensity_moment",
+    "intersect",
+    "measure",
+    "normal_form",
+    "parse_assignments",
+    "recursive_fit",
+    "segment_edge",
+    "square_homography",
+    "testbox_scan",
+    "to_gray8",
+    "vertices",
+]

@@ -1,0 +1,48 @@
+"""Stages 2-3: the four directional Prewitt operators and the threshold (seed 3.2.2-3.2.3, eq. 4).
+
+Edge names: the horizontal groove is bounded by the ``top`` edge (bright land above, dark groove below)
+and the ``bottom`` edge (dark above, bright below: eq. 4's own operator); the vertical groove by the
+``left`` edge (bright left, dark right) and the ``right`` edge (dark left, bright right).
+"""
+
+from __future__ import annotations
+
+from typing import Final, Literal
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+Edge = Literal["top", "bottom", "left", "right"]
+EDGES: Final[tuple[Edge, ...]] = ("top", "bottom", "left", "right")
+Float32Image = npt.NDArray[np.float32]
+
+#: Eq. 4 (correlation: response = sum of the row below - sum of the row above).
+PREWITT_DOWN: Final = np.array([[-1, -1, -1], [0, 0, 0], [1, 1, 1]], dtype=np.float32)
+PREWITT_RIGHT: Final = np.ascontiguousarray(PREWITT_DOWN.T)
+
+
+def directional_responses(filtered: Float32Image) -> dict[Edge, Float32Image]:
+    """The four operators' responses, each keeping only its own polarity (negative values -> 0).
+
+    ``bottom`` is eq. 4 (dark above, bright below); ``top`` its negation; ``right`` is eq. 4
+    transposed (dark left, bright right); ``left`` its negation. Shapes equal ``filtered``'s.
+    """
+    gy = cv2.filter2D(filtered, cv2.CV_32F, PREWITT_DOWN, borderType=cv2.BORDER_REPLICATE)
+    gx = cv2.filter2D(filtered, cv2.CV_32F, PREWITT_RIGHT, borderType=cv2.BORDER_REPLICATE)
+    return {
+        "top": np.maximum(-gy, 0.0),
+        "bottom": np.maximum(gy, 0.0),
+        "left": np.maximum(-gx, 0.0),
+        "right": np.maximum(gx, 0.0),
+    }
+
+
+def apply_threshold(response: Float32Image, fraction: float) -> Float32Image:
+    """Zero every value below ``fraction`` of the maximum (section 3.2.3); returns a new array."""
+    peak = float(response.max())
+    if peak <= 0.0:
+        return np.zeros_like(response)
+    out = response.copy()
+    out[out < fraction * peak] = 0.0
+    return out

@@ -1,0 +1,83 @@
+"""Input: turn any supported array into the 8-bit monochrome image the seed works on (section 3.1)."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+from station.vision._errors import ImageQualityError, InvalidImageError
+
+Gray8 = npt.NDArray[np.uint8]
+
+#: Smallest image side the pipeline accepts (px): room for the TestBox and a crossing.
+MIN_SIDE_PX = 64
+
+
+def to_gray8(image: object) -> Gray8:
+    """Convert ``image`` to a C-contiguous 2-D uint8 array, explicitly.
+
+    * 2-D uint8: used as is (not copied, not modified).
+    * 16-bit (uint16): scaled by 255/65535 with rounding (full-range 16 bit).
+    * colour (H, W, 3) or (H, W, 4): converted as OpenCV's BGR/BGRA (what ``cv2.imread`` gives);
+      (H, W, 1) is squeezed.
+
+    Raises
+    ------
+    InvalidImageError
+        Not a numpy array, empty, wrong number of dimensions or channels, unsupported dtype
+        (float, bool, signed), or smaller than ``MIN_SIDE_PX`` on a side.
+    """
+    if not isinstance(image, np.ndarray):
+        raise InvalidImageError(f"image must be a numpy array, got {type(image).__name__}")
+    if image.size == 0:
+        raise InvalidImageError(f"image is empty (shape {image.shape})")
+    arr = image
+    if arr.ndim == 3:
+        channels = arr.shape[2]
+        if channels == 1:
+            arr = arr[:, :, 0]
+        elif channels not in (3, 4):
+            raise InvalidImageError(f"image has {channels} channels; expected 1 (grey), 3 (BGR) or 4 (BGRA)")
+    elif arr.ndim != 2:
+        raise InvalidImageError(f"image must be 2-D (grey) or 3-D (colour), got shape {image.shape}")
+    if arr.dtype == np.uint16:
+        arr = np.rint(arr.astype(np.float32) * (255.0 / 65535.0)).astype(np.uint8)
+    elif arr.dtype != np.uint8:
+        raise InvalidImageError(
+            f"image dtype {arr.dtype} is not supported; convert to uint8 or uint16 (grey levels)"
+        )
+    if arr.ndim == 3:
+        code = cv2.COLOR_BGR2GRAY if arr.shape[2] == 3 else cv2.COLOR_BGRA2GRAY
+        arr = cv2.cvtColor(np.ascontiguousarray(arr), code)
+    h, w = arr.shape
+    if h < MIN_SIDE_PX or w < MIN_SIDE_PX:
+        raise InvalidImageError(
+            f"image is {w}x{h} px; at least {MIN_SIDE_PX}x{MIN_SIDE_PX} px are needed "
+            "(the nominal frame is 640x480)"
+        )
+    return np.ascontiguousarray(arr)
+
+
+def check_quality(gray: Gray8) -> None:
+    """Reject frames no method can measure, with the likely cause.
+
+    Raises
+    ------
+    ImageQualityError
+        Blank (grey levels span under 10 DN between the 1st and 99th percentiles) or saturated
+        (over half the pixels at 255).
+    """
+    hist = cv2.calcHist([gray], [0], None, [256], [0, 256]).ravel()
+    cdf = np.cumsum(hist) / gray.size
+    lo = int(np.searchsorted(cdf, 0.01))
+    hi = int(np.searchsorted(cdf, 0.99))
+    saturated = hist[255] / gray.size
+    if saturated > 0.5:
+        raise ImageQualityError(
+            f"image is saturated: {saturated:.0%} of pixels at 255; reduce exposure, gain or illumination"
+        )
+    if hi - lo < 10:
+        raise ImageQualityError(
+            f"image is blank: grey levels span only {lo}-{hi}; check illumination, lens cap and focus"
+        )

@@ -1,0 +1,75 @@
+"""The measurement core's entry point: image + parameters -> Measurement (pure: no I/O)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from station.vision._edges import EDGES
+from station.vision._errors import EdgeNotFoundError, GeometryError
+from station.vision._geometry import centre, check_cross, square_homography, vertices
+from station.vision._image import check_quality, to_gray8
+from station.vision._orientation import dominant_rotation_deg
+from station.vision._paper import paper_edges
+from station.vision._params import MeasureParams
+from station.vision._result import Measurement
+
+
+def measure(image: object, params: MeasureParams | None = None) -> Measurement:
+    """Measure the crossing of the artifact's grooves in one image.
+
+    Parameters
+    ----------
+    image : ndarray
+        2-D uint8 (the seed's 8-bit monochrome frame), uint16, or BGR/BGRA colour; any size from 64 px.
+        It is not modified.
+    params : MeasureParams, optional
+        Mode and parameters; default: paper mode, Table 1's trial 7.
+
+    Returns
+    -------
+    Measurement
+        Centre (px and mm), corners, lines and diagnostics.
+
+    Raises
+    ------
+    MeasurementError
+        A subclass naming what is wrong: InvalidImageError, ImageQualityError, EdgeNotFoundError,
+        GeometryError.
+    """
+    p = params if params is not None else MeasureParams()
+    gray = to_gray8(image)
+    check_quality(gray)
+    if p.mode == "paper":
+        try:
+            edges = paper_edges(gray, p)
+        except EdgeNotFoundError as exc:
+            raise _explain_rotation(gray, p.max_rotation_deg) or exc from None
+    else:  # pragma: no cover - precise mode is added by its own module
+        raise NotImplementedError(f"mode {p.mode!r} is not available yet")
+    lines = {e: edges[e].line for e in EDGES}
+    corners = vertices(lines)
+    rotation, widths = check_cross(lines, corners, gray.shape, max_rotation_deg=p.max_rotation_deg)
+    H = square_homography(corners, p.groove_width_mm)
+    center_mm, center_px = centre(H, p.groove_width_mm)
+    return Measurement(
+        center_px=center_px,
+        center_mm=center_mm,
+        corners_px=corners,
+        lines=np.array([lines[e] for e in EDGES], dtype=np.float64),
+        homography=H,
+        edges=edges,
+        rotation_deg=rotation,
+        groove_width_px=widths,
+        params=p,
+    )
+
+
+def _explain_rotation(gray: np.ndarray, max_rotation_deg: float) -> GeometryError | None:
+    """A GeometryError when edges were missed because the cross is turned beyond the mode's range."""
+    rotation, strength = dominant_rotation_deg(gray)
+    if strength > 0.3 and abs(rotation) > max_rotation_deg:
+        return GeometryError(
+            f"the cross appears rotated by {rotation:.0f} deg; this mode measures within "
+            f"+/-{max_rotation_deg:.0f} deg: turn the artifact (or the camera) toward the image axes"
+        )
+    return None

@@ -1,0 +1,46 @@
+"""Stage 5: the 3x3 raw-intensity moment (seed section 3.2.4, eqs. 7-8, Figure 10).
+
+x = sum(x I) / sum(I), y = sum(y I) / sum(I) over the 3x3 neighbourhood of each segmented pixel, with I
+from the raw (unfiltered) image, as the seed does. Known limitation (accuracy.md): on an edge along pixel
+rows the estimate is pulled toward the bright side by a fraction of a pixel, the same on every column,
+so the line fit cannot average it out. Paper mode keeps it faithfully; precise mode replaces it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+_DY, _DX = np.mgrid[-1:2, -1:2]
+_DX_FLAT = _DX.ravel().astype(np.float64)
+_DY_FLAT = _DY.ravel().astype(np.float64)
+
+
+def intensity_moment(
+    raw: npt.NDArray[np.uint8], points: npt.NDArray[np.intp]
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.bool_]]:
+    """Sub-pixel positions of integer ``points`` (N, 2) ``(x, y)``.
+
+    Returns ``(refined, valid)``: refined (N, 2) float positions, and a mask of the points that have a
+    full 3x3 neighbourhood inside the image and a non-zero intensity sum (others keep their pixel
+    position and are marked invalid).
+    """
+    h, w = raw.shape
+    x = points[:, 0]
+    y = points[:, 1]
+    valid = (x >= 1) & (x <= w - 2) & (y >= 1) & (y <= h - 2)
+    refined = points.astype(np.float64)
+    if not valid.any():
+        return refined, valid
+    xv, yv = x[valid], y[valid]
+    patch = raw[yv[:, None] + _DY.ravel()[None, :], xv[:, None] + _DX.ravel()[None, :]].astype(np.float64)
+    total = patch.sum(axis=1)
+    ok = total > 0
+    safe = np.where(ok, total, 1.0)
+    refined_valid = refined[valid]
+    refined_valid[:, 0] = np.where(ok, xv + (patch @ _DX_FLAT) / safe, xv)
+    refined_valid[:, 1] = np.where(ok, yv + (patch @ _DY_FLAT) / safe, yv)
+    refined[valid] = refined_valid
+    valid_idx = np.flatnonzero(valid)
+    valid[valid_idx[~ok]] = False
+    return refined, valid

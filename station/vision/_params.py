@@ -1,0 +1,90 @@
+"""The measurement parameters: one pydantic model, named as the seed names them.
+
+Seed: Fratpietro & Hayes, section 3.2 (FILTER, TESTHEIGHT, TESTWIDTH, SKIP, threshold) and section 4
+(Table 1). Paper mode's defaults are Table 1's trial 7: no filter, SKIP 1, TESTWIDTH 5, TESTHEIGHT 5.
+Names are matched case-insensitively by ``station measure --set NAME=VALUE``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+Mode = Literal["paper", "precise"]
+FilterKind = Literal["none", "mean", "gauss"]
+
+#: Nominal groove width: 0.794 mm (1/32 in; the paper's label "1/16 in" is wrong, seed-paper.md).
+NOMINAL_GROOVE_WIDTH_MM = 25.4 / 32
+#: The densest printed row of the seed's 7x7 mask (2 4 8 16 8 4 2) halves per pixel: sigma = 1/sqrt(2 ln 2).
+SEED_GAUSS_SIGMA_PX = 1.0 / math.sqrt(2.0 * math.log(2.0))
+
+
+class MeasureParams(BaseModel):
+    """Parameters of one measurement (units in each field's description)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    mode: Mode = Field("paper", description="algorithm: 'paper' (the seed's) or 'precise'")
+    filter: FilterKind = Field("none", description="FILTER, seed 3.2.1: none | mean (3x3) | gauss (7x7)")
+    gauss_sigma: float = Field(
+        SEED_GAUSS_SIGMA_PX, gt=0, le=3, description="sigma of the 7x7 Gaussian of eq. 2 (px)"
+    )
+    threshold: float = Field(0.30, gt=0, lt=1, description="fraction of the maximum response kept, 3.2.3")
+    skip: int = Field(1, ge=1, le=100, description="SKIP: columns between scanned columns, 3.2.4")
+    testwidth: int = Field(5, ge=1, le=100, description="TESTWIDTH: offset of columns E and F (px), eq. 6")
+    testheight: int = Field(5, ge=1, le=100, description="TESTHEIGHT: half height of column A (px), eq. 5")
+    backoff: int | None = Field(
+        None, ge=0, le=200, description="rows the TestBox moves back up after a hit (px); None = TESTHEIGHT"
+    )
+    corr_tol: float = Field(
+        0.0, ge=0, le=1, description="recursive fit: remove points while |r| is below this (0 = off)"
+    )
+    change_tol: float = Field(
+        1e-4, ge=0, le=1, description="recursive fit: remove points while removal changes |r| by more"
+    )
+    max_removals: int = Field(50, ge=0, le=10_000, description="recursive fit: most points removed, 3.2.4")
+    groove_width_mm: float = Field(
+        NOMINAL_GROOVE_WIDTH_MM, gt=0, le=50, description="groove width w, the square's side (mm), 3.2.5"
+    )
+    min_edge_points: int = Field(20, ge=3, description="fewest points that make an edge")
+    max_residual_px: float = Field(2.0, gt=0, description="largest rms distance of an edge's points (px)")
+    max_rotation_deg: float = Field(30.0, gt=0, le=45, description="largest in-plane rotation accepted")
+
+    @model_validator(mode="after")
+    def _check(self) -> MeasureParams:
+        if self.filter == "gauss" and self.gauss_sigma > 7 / 3:
+            raise ValueError(f"gauss_sigma {self.gauss_sigma} px is too wide for a 7x7 mask (at most 2.33)")
+        return self
+
+    @property
+    def backoff_rows(self) -> int:
+        return self.testheight if self.backoff is None else self.backoff
+
+    @classmethod
+    def for_mode(cls, mode: Mode, **overrides: Any) -> MeasureParams:
+        """Defaults of ``mode`` (paper: Table 1, trial 7) with ``overrides`` applied and validated."""
+        return cls.model_validate({"mode": mode, **overrides})
+
+    def with_values(self, **changes: Any) -> MeasureParams:
+        """A validated copy with ``changes``."""
+        return type(self).model_validate({**self.model_dump(), **changes})
+
+
+def parse_assignments(assignments: list[str]) -> dict[str, str]:
+    """Parse ``NAME=VALUE`` strings into a dict keyed by the model's field names (case-insensitive).
+
+    Raises ``ValueError`` naming the bad assignment and the known names.
+    """
+    fields = {name.lower(): name for name in MeasureParams.model_fields}
+    out: dict[str, str] = {}
+    for item in assignments:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip():
+            raise ValueError(f"--set {item!r}: expected NAME=VALUE, e.g. --set TESTWIDTH=5")
+        key = name.strip().lower()
+        if key not in fields:
+            raise ValueError(f"--set {name!r}: unknown parameter; known: {', '.join(sorted(fields))}")
+        out[fields[key]] = value.strip()
+    return out
