@@ -18,6 +18,8 @@ from station.vision import (
     intensity_moment,
     recursive_fit,
     segment_edge,
+)
+from station.vision import (
     testbox_scan as scan_with_testbox,
 )
 
@@ -66,11 +68,13 @@ def test_each_operator_responds_only_to_its_own_polarity() -> None:
     r = directional_responses(dark_above)
     assert r["bottom"].max() > 0  # eq. 4: dark above, bright below
     assert r["top"].max() == 0
-    assert r["left"].max() == 0 and r["right"].max() == 0
+    assert r["left"].max() == 0
+    assert r["right"].max() == 0
     # the response sits on the two rows around the step: rows 29 and 30
     assert set(np.nonzero(r["bottom"][:, 40])[0]) == {29, 30}
     r2 = directional_responses(np.ascontiguousarray(dark_above.T))
-    assert r2["right"].max() > 0 and r2["left"].max() == 0
+    assert r2["right"].max() > 0
+    assert r2["left"].max() == 0
 
 
 def test_threshold_zeroes_below_fraction_of_maximum() -> None:
