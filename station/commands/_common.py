@@ -12,7 +12,10 @@ from station.vision import MeasureParams, parse_assignments
 
 def add_measure_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "--mode", choices=["paper", "precise"], default=None, help="algorithm (default: paper)"
+        "--mode",
+        choices=["precise", "paper"],
+        default=None,
+        help="algorithm: precise (default) or paper (the seed's, Table 1 trial 7 defaults)",
     )
     parser.add_argument(
         "--set",

@@ -68,11 +68,12 @@ def check_quality(gray: Gray8) -> None:
         Blank (grey levels span under 10 DN between the 1st and 99th percentiles) or saturated
         (over half the pixels at 255).
     """
-    hist = cv2.calcHist([gray], [0], None, [256], [0, 256]).ravel()
-    cdf = np.cumsum(hist) / gray.size
+    sample = gray[::2, ::2]  # a quarter of the pixels decides as well, four times faster
+    hist = cv2.calcHist([np.ascontiguousarray(sample)], [0], None, [256], [0, 256]).ravel()
+    cdf = np.cumsum(hist) / sample.size
     lo = int(np.searchsorted(cdf, 0.01))
     hi = int(np.searchsorted(cdf, 0.99))
-    saturated = hist[255] / gray.size
+    saturated = hist[255] / sample.size
     if saturated > 0.5:
         raise ImageQualityError(
             f"image is saturated: {saturated:.0%} of pixels at 255; reduce exposure, gain or illumination"

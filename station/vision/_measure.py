@@ -11,6 +11,7 @@ from station.vision._image import check_quality, to_gray8
 from station.vision._orientation import dominant_rotation_deg
 from station.vision._paper import paper_edges
 from station.vision._params import MeasureParams
+from station.vision._precise import precise_edges
 from station.vision._result import Measurement
 
 
@@ -23,7 +24,8 @@ def measure(image: object, params: MeasureParams | None = None) -> Measurement:
         2-D uint8 (the seed's 8-bit monochrome frame), uint16, or BGR/BGRA colour; any size from 64 px.
         It is not modified.
     params : MeasureParams, optional
-        Mode and parameters; default: paper mode, Table 1's trial 7.
+        Mode and parameters; default: precise mode. ``MeasureParams(mode="paper")`` is the seed's
+        algorithm with Table 1's trial 7.
 
     Returns
     -------
@@ -43,12 +45,12 @@ def measure(image: object, params: MeasureParams | None = None) -> Measurement:
         try:
             edges = paper_edges(gray, p)
         except EdgeNotFoundError as exc:
-            raise _explain_rotation(gray, p.max_rotation_deg) or exc from None
-    else:  # pragma: no cover - precise mode is added by its own module
-        raise NotImplementedError(f"mode {p.mode!r} is not available yet")
+            raise _explain_rotation(gray, p.rotation_limit_deg) or exc from None
+    else:
+        edges = precise_edges(gray, p)
     lines = {e: edges[e].line for e in EDGES}
     corners = vertices(lines)
-    rotation, widths = check_cross(lines, corners, gray.shape, max_rotation_deg=p.max_rotation_deg)
+    rotation, widths = check_cross(lines, corners, gray.shape, max_rotation_deg=p.rotation_limit_deg)
     H = square_homography(corners, p.groove_width_mm)
     center_mm, center_px = centre(H, p.groove_width_mm)
     return Measurement(

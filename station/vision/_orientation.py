@@ -18,9 +18,11 @@ import numpy.typing as npt
 
 def dominant_rotation_deg(gray: npt.NDArray[np.uint8]) -> tuple[float, float]:
     """Return ``(rotation_deg, strength)``; strength in [0, 1] (1: all gradients agree)."""
-    img = gray.astype(np.float32)
-    gx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3)
-    gy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3)
+    # Scharr's kernel is the most rotation-invariant 3x3 derivative; a light blur keeps sharp edges from
+    # biasing the angle toward the pixel axes (Sobel on a sharp edge is off by ~1-2 deg at 20 deg).
+    img = cv2.GaussianBlur(gray.astype(np.float32), (5, 5), 1.0)
+    gx = cv2.Scharr(img, cv2.CV_32F, 1, 0)
+    gy = cv2.Scharr(img, cv2.CV_32F, 0, 1)
     mag2 = gx * gx + gy * gy
     # cos(4 phi) and sin(4 phi) from (gx, gy) without trig: via the doubled angle twice
     c2 = (gx * gx - gy * gy) / np.maximum(mag2, 1e-12)

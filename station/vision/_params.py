@@ -2,6 +2,7 @@
 
 Seed: Fratpietro & Hayes, section 3.2 (FILTER, TESTHEIGHT, TESTWIDTH, SKIP, threshold) and section 4
 (Table 1). Paper mode's defaults are Table 1's trial 7: no filter, SKIP 1, TESTWIDTH 5, TESTHEIGHT 5.
+Precise mode (the default) has its own fields, marked "precise:"; each mode ignores the other's.
 Names are matched case-insensitively by ``station measure --set NAME=VALUE``.
 """
 
@@ -10,6 +11,7 @@ from __future__ import annotations
 import math
 from typing import Any, Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 Mode = Literal["paper", "precise"]
@@ -26,7 +28,7 @@ class MeasureParams(BaseModel):
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
-    mode: Mode = Field("paper", description="algorithm: 'paper' (the seed's) or 'precise'")
+    mode: Mode = Field("precise", description="algorithm: 'precise' (default) or 'paper' (the seed's)")
     filter: FilterKind = Field("none", description="FILTER, seed 3.2.1: none | mean (3x3) | gauss (7x7)")
     gauss_sigma: float = Field(
         SEED_GAUSS_SIGMA_PX, gt=0, le=3, description="sigma of the 7x7 Gaussian of eq. 2 (px)"
@@ -50,13 +52,56 @@ class MeasureParams(BaseModel):
     )
     min_edge_points: int = Field(20, ge=3, description="fewest points that make an edge")
     max_residual_px: float = Field(2.0, gt=0, description="largest rms distance of an edge's points (px)")
-    max_rotation_deg: float = Field(30.0, gt=0, le=45, description="largest in-plane rotation accepted")
+    max_rotation_deg: float | None = Field(
+        None, gt=0, le=45, description="largest in-plane rotation accepted (deg); None: paper 30, precise 40"
+    )
+    # precise mode (issue 3): band-limited sub-pixel edge points and robust orthogonal fits
+    window_px: int | None = Field(
+        None, ge=2, le=20, description="precise: half-width of the edge profile window (px); None = auto"
+    )
+    window_sigmas: float = Field(
+        2.5, ge=1.5, le=6, description="precise: auto window half-width in line-spread sigmas (+1 px)"
+    )
+    impulse_dn: float = Field(
+        25.0, gt=0, le=255, description="precise: a profile sample this far from its 3-median is an impulse"
+    )
+    flat_field: bool = Field(
+        True, description="precise: divide edge profiles by the illumination fitted over the lands"
+    )
+    passes: int = Field(2, ge=2, le=6, description="precise: re-centring passes (the last one is kept)")
+    corner_margin_px: float = Field(
+        14.0, ge=0, le=200, description="precise: edge excluded this far beyond the perpendicular groove (px)"
+    )
+    outlier_sigma: float = Field(3.5, gt=1, le=20, description="precise: inlier band, robust sigmas")
+    min_contrast_fraction: float = Field(
+        0.5, gt=0, lt=1, description="precise: weakest profile kept, as a fraction of the median contrast"
+    )
+    camera_matrix: list[list[float]] | None = Field(
+        None, description="precise: 3x3 OpenCV camera matrix for lens-distortion correction (off if None)"
+    )
+    dist_coeffs: list[float] | None = Field(
+        None, description="precise: OpenCV distortion coefficients (k1 k2 p1 p2 [k3 ...])"
+    )
 
     @model_validator(mode="after")
     def _check(self) -> MeasureParams:
         if self.filter == "gauss" and self.gauss_sigma > 7 / 3:
             raise ValueError(f"gauss_sigma {self.gauss_sigma} px is too wide for a 7x7 mask (at most 2.33)")
+        if self.camera_matrix is not None:
+            k = np.asarray(self.camera_matrix, dtype=float)
+            if k.shape != (3, 3) or not np.all(np.isfinite(k)) or k[0, 0] <= 0 or k[1, 1] <= 0:
+                raise ValueError("camera_matrix must be a 3x3 OpenCV camera matrix with positive fx, fy")
+            if self.dist_coeffs is not None and len(self.dist_coeffs) not in (4, 5, 8, 12, 14):
+                raise ValueError("dist_coeffs must have 4, 5, 8, 12 or 14 values (OpenCV's models)")
+        elif self.dist_coeffs is not None:
+            raise ValueError("dist_coeffs need a camera_matrix")
         return self
+
+    @property
+    def rotation_limit_deg(self) -> float:
+        if self.max_rotation_deg is not None:
+            return self.max_rotation_deg
+        return 30.0 if self.mode == "paper" else 40.0
 
     @property
     def backoff_rows(self) -> int:

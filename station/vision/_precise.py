@@ -1,0 +1,449 @@
+"""Precise mode: the seed's structure (four edges -> four lines -> vertices -> projective transform),
+with the stages that limit its accuracy replaced (accuracy.md).
+
+1. **Coarse cross** (replaces filter + Prewitt + threshold + TestBox): the rotation from the fourfold
+   gradient-angle mean, then each groove as the dark band of an intensity profile projected along the
+   groove on a 4x reduced image. Any rotation within the mode's range, the crossing anywhere.
+2. **Sub-pixel edge points** (replaces the 3x3 raw-intensity moment): in a band around the predicted
+   edge, for every column (horizontal edges) or row (vertical edges), the centroid of the intensity's
+   first differences over a window exactly symmetric about the current estimate. The first difference
+   of a pixel-integrated edge is the edge's line-spread function convolved with two unit boxes; its
+   samples at unit spacing have a centroid equal to the continuous one (the boxes' spectra vanish at the
+   sampling harmonics), so the estimator has no pixel-locking bias for any blur; a constant background
+   slope cancels in the symmetric window. Re-centring on the fitted line (``passes``) removes the
+   window's offset.
+3. **Robust orthogonal line fit** (replaces y-on-x regression with correlation-driven removal): a
+   Huber M-estimate (``cv2.fitLine``), then total least squares on the points within ``outlier_sigma``
+   robust standard deviations; glints, scratches and salt-and-pepper give off-line points or weak
+   profiles, both rejected. The rounded land corners are excluded by a margin around the crossing.
+4. Optional lens-distortion correction of the edge points from an OpenCV camera model.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+from station.vision._edges import EDGES, Edge
+from station.vision._errors import EdgeNotFoundError, GeometryError
+from station.vision._geometry import VERTICAL, Line, intersect
+from station.vision._image import Gray8
+from station.vision._orientation import dominant_rotation_deg
+from station.vision._params import MeasureParams
+from station.vision._result import EdgeFit
+
+FloatArray = npt.NDArray[np.float64]
+
+COARSE_SCALE = 4
+_LABEL = {
+    "top": "the top edge of the horizontal groove",
+    "bottom": "the bottom edge of the horizontal groove",
+    "left": "the left edge of the vertical groove",
+    "right": "the right edge of the vertical groove",
+}
+#: +1 where the intensity rises across the edge in the scan direction (+y or +x), -1 where it falls.
+_POLARITY: dict[Edge, float] = {"top": -1.0, "bottom": 1.0, "left": -1.0, "right": 1.0}
+
+
+@dataclass(frozen=True)
+class CoarseCross:
+    """The cross found on the reduced image, in full-resolution px.
+
+    ``theta``: rotation (rad; the horizontal groove runs along (cos, sin)); ``edges``: per edge, its
+    signed offset from the image centre along the edge's normal (px).
+    """
+
+    theta: float
+    offsets: dict[Edge, float]
+    illumination: npt.NDArray[np.float32] | None = None
+
+
+#: Exponents (i, j) of x^i y^j in the flat-field polynomial (degree 4: radial falloff and its tilt).
+_FLAT_TERMS = tuple((i, d - i) for d in range(5) for i in range(d + 1))
+
+
+def _flat_basis(x: FloatArray, y: FloatArray, shape: tuple[int, int]) -> FloatArray:
+    """Polynomial terms of normalised coordinates (-1..1 over the frame), stacked on the last axis."""
+    h, w = shape
+    xn = (x - (w - 1) / 2.0) / (w / 2.0)
+    yn = (y - (h - 1) / 2.0) / (h / 2.0)
+    return np.stack([xn**i * yn**j for i, j in _FLAT_TERMS], axis=-1)
+
+
+@lru_cache(maxsize=8)
+def _small_basis(small_shape: tuple[int, int], shape: tuple[int, int]) -> FloatArray:
+    """Flat-field polynomial terms at the reduced image's pixel centres, (sh*sw, terms)."""
+    xf, yf = _centred_grid(small_shape, shape)
+    h, w = shape
+    basis = _flat_basis((xf + (w - 1) / 2.0).ravel(), (yf + (h - 1) / 2.0).ravel(), shape)
+    basis.setflags(write=False)
+    return basis
+
+
+def fit_illumination(
+    small: npt.NDArray[np.float32], land: npt.NDArray[np.bool_], shape: tuple[int, int]
+) -> npt.NDArray[np.float32] | None:
+    """The relative illumination (vignetting, light gradient) over the frame, fitted on the lands.
+
+    A degree-4 polynomial in the image coordinates is fitted to the land pixels of the reduced image
+    (every fifth one is plenty), refitted once without scratches and glints (beyond 3 MAD), normalised
+    to mean 1 over the lands and resampled to full resolution (float32, ``shape``). None when too few
+    land pixels are seen.
+    """
+    sh, sw = small.shape
+    basis = _small_basis((sh, sw), shape)
+    idx = np.flatnonzero(land.ravel())[::5]
+    if idx.size < 10 * len(_FLAT_TERMS):
+        return None
+    A = basis[idx]
+    values = small.ravel()[idx].astype(np.float64)
+    coef = np.linalg.solve(A.T @ A, A.T @ values)
+    resid = values - A @ coef
+    mad = _median(np.abs(resid - _median(resid)))
+    keep = np.abs(resid) <= 3.0 * 1.4826 * max(mad, 1e-6)
+    Ak = A[keep]
+    coef = np.linalg.solve(Ak.T @ Ak, Ak.T @ values[keep])
+    level = float(np.mean(Ak @ coef))
+    if level <= 0:
+        return None
+    flat_small = (basis @ (coef / level)).reshape(small.shape).astype(np.float32)
+    if float(flat_small.min()) <= 0.05:
+        return None  # the fit ran wild (too few lands in view): do without
+    h, w = shape
+    return np.asarray(cv2.resize(flat_small, (w, h), interpolation=cv2.INTER_LINEAR), np.float32)
+
+
+def _band_edges(profile: FloatArray, counts: FloatArray) -> tuple[int, int]:
+    """Indices (falling, rising) of the darkest band's two edges in a projected profile."""
+    valid = counts >= max(3.0, 0.2 * float(counts.max()))
+    idx = np.flatnonzero(valid)
+    lo, hi = int(idx[0]), int(idx[-1])
+    p = profile[lo : hi + 1]
+    smooth = np.convolve(p, np.ones(3) / 3.0, mode="same")
+    smooth[0], smooth[-1] = p[0], p[-1]
+    d = np.diff(smooth)
+    # the groove: the pair (strongest fall, strongest rise after it) with the deepest dark band between
+    fall = int(np.argmin(d))
+    rise_candidates = d[fall + 1 :]
+    if rise_candidates.size == 0:
+        raise ValueError("no rising edge after the falling one")
+    rise = fall + 1 + int(np.argmax(rise_candidates))
+    best_fall = fall
+    # check the alternative: strongest rise first, strongest fall before it
+    rise2 = int(np.argmax(d))
+    if rise2 > 0:
+        fall2 = int(np.argmin(d[:rise2]))
+        depth1 = d[rise] - d[fall]
+        depth2 = d[rise2] - d[fall2]
+        if depth2 > depth1:
+            best_fall, rise = fall2, rise2
+    return lo + best_fall, lo + rise
+
+
+@lru_cache(maxsize=8)
+def _centred_grid(small_shape: tuple[int, int], shape: tuple[int, int]) -> tuple[FloatArray, FloatArray]:
+    """Full-resolution coordinates (relative to the image centre) of the reduced image's pixel centres.
+
+    Reduced pixel (i, j) covers full-res [s*j - 0.5, s*j + s - 0.5]: its centre is s*j + (s - 1)/2.
+    """
+    s = COARSE_SCALE
+    sh, sw = small_shape
+    h, w = shape
+    ys, xs = np.mgrid[0:sh, 0:sw].astype(np.float64)
+    xf = xs * s + (s - 1) / 2.0 - (w - 1) / 2.0
+    yf = ys * s + (s - 1) / 2.0 - (h - 1) / 2.0
+    xf.setflags(write=False)
+    yf.setflags(write=False)
+    return xf, yf
+
+
+def coarse_cross(gray: Gray8, params: MeasureParams) -> CoarseCross:
+    """Find the two grooves roughly (to about a pixel) on a reduced image."""
+    h, w = gray.shape
+    s = COARSE_SCALE
+    small = cv2.resize(gray, (w // s, h // s), interpolation=cv2.INTER_AREA).astype(np.float32)
+    rotation_deg, strength = dominant_rotation_deg(small.astype(np.uint8))
+    max_rot = params.rotation_limit_deg
+    if strength < 0.05:
+        raise EdgeNotFoundError(
+            "found 0 of 4 edges: no straight edges in the image (is the crossed-groove artifact in view "
+            "and in focus?)"
+        )
+    if abs(rotation_deg) > max_rot:
+        raise GeometryError(
+            f"the cross appears rotated by {rotation_deg:.0f} deg; this mode measures within "
+            f"+/-{max_rot:.0f} deg: turn the artifact (or the camera) toward the image axes"
+        )
+    theta = math.radians(rotation_deg)
+    xf, yf = _centred_grid(small.shape, (h, w))
+    c, sn = math.cos(theta), math.sin(theta)
+    u = xf * c + yf * sn  # along the horizontal groove
+    v = -xf * sn + yf * c  # along the vertical groove
+    offsets: dict[Edge, float] = {}
+    values = small.ravel().astype(np.float64)
+    grooves: tuple[tuple[FloatArray, Edge, Edge], ...] = ((v, "top", "bottom"), (u, "left", "right"))
+    for coord, falling, rising in grooves:
+        q = coord.ravel() / s
+        base = math.floor(float(q.min()))
+        bins = np.floor(q - base).astype(np.intp)
+        counts = np.bincount(bins).astype(np.float64)
+        sums = np.bincount(bins, weights=values)
+        profile = sums / np.maximum(counts, 1.0)
+        try:
+            i_fall, i_rise = _band_edges(profile, counts)
+        except ValueError:
+            continue
+        # diff index i sits between bins i and i+1: boundary at bin value i + 1 -> coordinate (i+1+base)*s
+        offsets[falling] = (i_fall + 1 + base) * s
+        offsets[rising] = (i_rise + 1 + base) * s
+    if len(offsets) < 4:
+        missing = [e for e in EDGES if e not in offsets]
+        raise EdgeNotFoundError(
+            f"found {4 - len(missing)} of 4 edges: "
+            + ", ".join(f"{_LABEL[e]} was not found" for e in missing)
+        )
+    illumination = None
+    if params.flat_field:
+        margin = 2.0 * s
+        v_mid = (offsets["top"] + offsets["bottom"]) / 2.0
+        v_half = (offsets["bottom"] - offsets["top"]) / 2.0 + margin
+        u_mid = (offsets["left"] + offsets["right"]) / 2.0
+        u_half = (offsets["right"] - offsets["left"]) / 2.0 + margin
+        land = (np.abs(v - v_mid) > v_half) & (np.abs(u - u_mid) > u_half)
+        illumination = fit_illumination(small, land, (h, w))
+    return CoarseCross(theta, offsets, illumination)
+
+
+@dataclass(frozen=True)
+class _EdgeModel:
+    """An edge as ``across = slope * along + intercept`` in image px (along = x for horizontal edges)."""
+
+    slope: float
+    intercept: float
+
+
+def _initial_model(coarse: CoarseCross, edge: Edge, shape: tuple[int, int]) -> _EdgeModel:
+    h, w = shape
+    cx, cy = (w - 1) / 2.0, (h - 1) / 2.0
+    c, s = math.cos(coarse.theta), math.sin(coarse.theta)
+    off = coarse.offsets[edge]
+    if edge in VERTICAL:
+        # u = (x - cx) c + (y - cy) s = off  ->  x = cx + (off - (y - cy) s) / c
+        return _EdgeModel(-s / c, cx + (off + cy * s) / c)
+    # v = -(x - cx) s + (y - cy) c = off  ->  y = cy + (off + (x - cx) s) / c
+    return _EdgeModel(s / c, cy + (off - cx * s) / c)
+
+
+def _crossing_along(models: dict[Edge, _EdgeModel], edge: Edge) -> tuple[float, float]:
+    """(along coordinate of the crossing's centre, half-width of the perpendicular groove) for ``edge``."""
+    lines = {e: _line_of(m, vertical=e in VERTICAL) for e, m in models.items()}
+    pts = np.array([intersect(lines[a], lines[b]) for a in ("top", "bottom") for b in ("left", "right")])
+    along = pts[:, 1] if edge in VERTICAL else pts[:, 0]
+    return float(along.mean()), float(along.max() - along.min()) / 2.0
+
+
+def _line_of(model: _EdgeModel, *, vertical: bool) -> Line:
+    norm = math.hypot(1.0, model.slope)
+    if vertical:
+        return (1.0 / norm, -model.slope / norm, model.intercept / norm)
+    return (-model.slope / norm, 1.0 / norm, model.intercept / norm)
+
+
+def _suppress_impulses(samples: FloatArray, threshold: float) -> None:
+    """Replace isolated impulses (salt-and-pepper, hot pixels) in profiles across an edge, in place.
+
+    A clean blurred edge profile is monotonic, and the median of three neighbours leaves a monotonic
+    sequence unchanged: only samples that differ from their 3-sample median by more than ``threshold``
+    (DN) are replaced by it, so clean profiles are untouched and the estimator stays unbiased.
+    """
+    a, b, c = samples[:, :-2], samples[:, 1:-1], samples[:, 2:]
+    med = np.maximum(np.minimum(a, b), np.minimum(np.maximum(a, b), c))
+    bad = np.abs(b - med) > threshold
+    if bad.any():
+        b[bad] = med[bad]
+
+
+def _profile_points(
+    img: npt.NDArray[np.float32],
+    edge: Edge,
+    model: _EdgeModel,
+    along: npt.NDArray[np.intp],
+    half: int,
+    impulse_dn: float,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Sub-pixel edge positions along ``along`` (module docstring, step 2).
+
+    Returns ``(along, across, strength, spread)`` of the profiles that fit inside the image:
+    ``strength`` is the window's summed first difference (the local contrast, DN), ``spread`` the
+    second central moment of the differences (px^2).
+    """
+    h, w = img.shape
+    n_across = h if edge not in VERTICAL else w
+    mu = model.slope * along + model.intercept
+    base = np.floor(mu).astype(np.intp) - half
+    inside = (base >= 0) & (base + 2 * half + 1 < n_across)
+    along, mu, base = along[inside], mu[inside], base[inside]
+    k = base[:, None] + np.arange(2 * half + 2)[None, :]
+    flat = along[:, None] * w + k if edge in VERTICAL else k * w + along[:, None]
+    samples = np.take(img, flat).astype(np.float64)
+    _suppress_impulses(samples, impulse_dn)
+    d = _POLARITY[edge] * (samples[:, 1:] - samples[:, :-1])
+    pos = k[:, :-1] + 0.5
+    weight = np.clip(half + 0.5 - np.abs(pos - mu[:, None]), 0.0, 1.0)
+    wd = weight * d
+    strength = wd.sum(axis=1)
+    safe = np.where(strength > 0, strength, 1.0)
+    across = (wd * pos).sum(axis=1) / safe
+    spread = (wd * (pos - across[:, None]) ** 2).sum(axis=1) / safe
+    return along.astype(np.float64), across, strength, spread
+
+
+def _median(a: FloatArray) -> float:
+    """The (upper) median: one partition, without np.median's overhead on small arrays."""
+    k = a.size // 2
+    return float(np.partition(a, k)[k])
+
+
+def _tls(x: FloatArray, y: FloatArray) -> Line:
+    """Total-least-squares line through points (closed form for 2-D: the principal axis)."""
+    n = x.size
+    mx, my = float(x.sum()) / n, float(y.sum()) / n
+    dx, dy = x - mx, y - my
+    sxx, syy, sxy = float(dx @ dx), float(dy @ dy), float(dx @ dy)
+    phi = 0.5 * math.atan2(2.0 * sxy, sxx - syy)  # direction of the line
+    nx, ny = -math.sin(phi), math.cos(phi)
+    return (nx, ny, nx * mx + ny * my)
+
+
+def _robust_tls(
+    x: FloatArray, y: FloatArray, prior: Line, outlier_sigma: float, *, rounds: int = 2
+) -> tuple[Line, npt.NDArray[np.bool_], float]:
+    """Orthogonal line fit with outliers rejected beyond ``outlier_sigma`` robust sigmas.
+
+    Residuals are first taken from ``prior`` (the previous pass's line, close to the truth), so a
+    cluster of glint points cannot drag the first estimate; the robust sigma is 1.4826 MAD.
+    Returns (line, inliers, rms of the inliers' residuals).
+    """
+    a, b, c = prior
+    resid = a * x + b * y - c
+    inliers = np.ones(x.size, dtype=bool)
+    line = prior
+    for _ in range(rounds):
+        r = resid[inliers]
+        med = _median(r)
+        sigma = max(1.4826 * _median(np.abs(r - med)), 1e-3)
+        inliers = np.abs(resid - med) <= outlier_sigma * sigma
+        if inliers.sum() < 3:
+            raise ValueError("too few inliers")
+        line = _tls(x[inliers], y[inliers])
+        a, b, c = line
+        resid = a * x + b * y - c
+    ri = resid[inliers]
+    rms = math.sqrt(float(ri @ ri) / ri.size)
+    return line, inliers, rms
+
+
+def _orient(line: Line, *, vertical: bool) -> Line:
+    a, b, c = line
+    if (vertical and a < 0) or (not vertical and b < 0):
+        return (-a, -b, -c)
+    return (a, b, c)
+
+
+def _model_from_line(line: Line, *, vertical: bool) -> _EdgeModel:
+    a, b, c = line
+    if vertical:  # a x + b y = c -> x = (c - b y) / a
+        return _EdgeModel(-b / a, c / a)
+    return _EdgeModel(-a / b, c / b)
+
+
+def _undistort(points: FloatArray, params: MeasureParams) -> FloatArray:
+    if params.camera_matrix is None:
+        return points
+    K = np.asarray(params.camera_matrix, np.float64)
+    dist = np.asarray(params.dist_coeffs or [], np.float64)
+    out = cv2.undistortPoints(points.reshape(-1, 1, 2), K, dist, P=K)
+    return np.asarray(out, np.float64).reshape(-1, 2)
+
+
+def precise_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
+    """Four robust sub-pixel edge lines (module docstring); raises EdgeNotFoundError or GeometryError."""
+    h, w = gray.shape
+    coarse = coarse_cross(gray, params)
+    img = gray.astype(np.float32)
+    if coarse.illumination is not None:
+        img /= coarse.illumination  # flat field: vignetting would bias the profiles' centroids
+    models = {e: _initial_model(coarse, e, (h, w)) for e in EDGES}
+    # the first pass steers from the coarse cross (a pixel or two off at the frame's ends): wide window
+    half = params.window_px if params.window_px is not None else 8
+    border = half + 2
+    fits: dict[Edge, EdgeFit] = {}
+    problems: dict[Edge, str] = {}
+    for pass_no in range(params.passes):
+        last = pass_no == params.passes - 1
+        spreads: list[float] = []
+        new_models: dict[Edge, _EdgeModel] = {}
+        for edge in EDGES:
+            vertical = edge in VERTICAL
+            length = h if vertical else w
+            centre_along, half_groove = _crossing_along(models, edge)
+            # passes before the last only steer the windows: every 4th profile is plenty
+            along = np.arange(border, length - border, 1 if last else 4, dtype=np.intp)
+            keep = np.abs(along - centre_along) > half_groove + params.corner_margin_px
+            t, a, strength, spread = _profile_points(
+                img, edge, models[edge], along[keep], half, params.impulse_dn
+            )
+            if t.size < params.min_edge_points:
+                problems[edge] = f"{t.size} profiles inside the frame (at least {params.min_edge_points})"
+                continue
+            good = strength > params.min_contrast_fraction * _median(strength)
+            good &= np.abs(a - (models[edge].slope * t + models[edge].intercept)) < (
+                half / 2.0 if last else half - 2.0
+            )
+            if good.sum() < params.min_edge_points:
+                problems[edge] = f"only {int(good.sum())} profiles show the edge"
+                continue
+            spreads.append(_median(spread[good]))
+            x, y = (a[good], t[good]) if vertical else (t[good], a[good])
+            pts = np.column_stack([x, y])
+            if last:
+                pts = _undistort(pts, params)
+            prior = _line_of(models[edge], vertical=vertical)
+            try:
+                line, inliers, rms = _robust_tls(
+                    pts[:, 0], pts[:, 1], prior, params.outlier_sigma, rounds=2 if last else 1
+                )
+            except ValueError:
+                problems[edge] = "its points do not lie on a line"
+                continue
+            line = _orient(line, vertical=vertical)
+            if rms > params.max_residual_px:
+                problems[edge] = f"its points are not on a line (rms {rms:.2f} px)"
+                continue
+            new_models[edge] = _model_from_line(line, vertical=vertical)
+            if last:
+                fits[edge] = EdgeFit(
+                    name=edge,
+                    line=line,
+                    segmented=int(t.size),
+                    used=int(inliers.sum()),
+                    removed=int(t.size - inliers.sum()),
+                    rms_px=rms,
+                    points=np.ascontiguousarray(pts[inliers]),
+                )
+        if problems:
+            found = 4 - len(problems)
+            details = "; ".join(f"{_LABEL[e]}: {why}" for e, why in problems.items())
+            raise EdgeNotFoundError(f"found {found} of 4 edges ({details})", found=tuple(new_models))
+        models = new_models
+        if params.window_px is None and spreads:
+            # window half-width ~ 3.5 line-spread sigmas (spread includes the two unit boxes: 2/12 px^2)
+            sigma = math.sqrt(max(_median(np.asarray(spreads)) - 1.0 / 6.0, 0.1))
+            half = int(np.clip(math.ceil(params.window_sigmas * sigma) + 1, 3, 12))
+            border = half + 2
+    return fits
