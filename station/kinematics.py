@@ -194,7 +194,8 @@ class Kinematics:
         limits = np.asarray(joint_limits_deg, dtype=float)
         if limits.shape != (JOINTS, 2) or np.any(limits[:, 0] >= limits[:, 1]):
             raise KinematicsError(
-                f"joint_limits_deg must be {JOINTS} (low, high) pairs with low < high, got {joint_limits_deg!r}"
+                f"joint_limits_deg must be {JOINTS} (low, high) pairs with low < high,"
+                f" got {joint_limits_deg!r}"
             )
         self.dh: tuple[DHRow, ...] = tuple(dh)
         self.joint_limits_deg: FloatArray = limits
@@ -348,7 +349,7 @@ class Kinematics:
                 nominal = np.array([q1, q2, q3]) + np.array([0.0, -math.pi / 2, -math.pi / 2]) - off[:3]
                 q123 = np.degrees(nominal)
                 R03 = self.link_frames(np.concatenate([q123, np.zeros(3)]))[2, :3, :3]
-                R03 = np.linalg.solve(self.base[:3, :3], R03)
+                R03 = np.asarray(np.linalg.solve(self.base[:3, :3], R03), dtype=float)
                 M = rot_x(self._alpha[3]).T @ R03.T @ R
                 for sign in (1.0, -1.0):
                     cb = max(-1.0, min(1.0, M[2, 2]))
