@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
+from station.vision._edges import Edge
+
 
 class MeasurementError(ValueError):
     """An image could not be measured. ``code`` is a stable machine-readable reason."""
@@ -39,3 +43,32 @@ class GeometryError(MeasurementError):
     """Four edges were found but they do not form the artifact's cross."""
 
     code = "bad_geometry"
+
+
+EDGE_LABELS: dict[Edge, str] = {
+    "top": "the top edge of the horizontal groove",
+    "bottom": "the bottom edge of the horizontal groove",
+    "left": "the left edge of the vertical groove",
+    "right": "the right edge of the vertical groove",
+}
+
+
+def describe_missing(problems: Mapping[Edge, str]) -> str:
+    """'found 2 of 4 edges: the vertical groove was not found (left: ...; right: ...)'."""
+    missing = set(problems)
+    parts = []
+    if {"top", "bottom"} <= missing:
+        parts.append("the horizontal groove was not found")
+    if {"left", "right"} <= missing:
+        parts.append("the vertical groove was not found")
+    whole = {e for pair in (("top", "bottom"), ("left", "right")) if set(pair) <= missing for e in pair}
+    parts += [
+        f"{EDGE_LABELS[e]} was not found"
+        for e in ("top", "bottom", "left", "right")
+        if e in missing and e not in whole
+    ]
+    details = "; ".join(f"{e}: {why}" for e, why in problems.items())
+    hint = ""
+    if len(missing) == 4:
+        hint = " Is the crossed-groove artifact in view and in focus?"
+    return f"found {4 - len(missing)} of 4 edges: {', '.join(parts)} ({details}).{hint}"

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from station.vision._edges import EDGES, Edge, apply_threshold, directional_responses
-from station.vision._errors import EdgeNotFoundError
+from station.vision._errors import EdgeNotFoundError, describe_missing
 from station.vision._filters import apply_filter
 from station.vision._geometry import VERTICAL, Line, normal_form
 from station.vision._image import Gray8
@@ -20,13 +20,6 @@ from station.vision._moment import intensity_moment
 from station.vision._params import MeasureParams
 from station.vision._result import EdgeFit
 from station.vision._testbox import segment_edge
-
-_EDGE_LABEL = {
-    "top": "the top edge of the horizontal groove",
-    "bottom": "the bottom edge of the horizontal groove",
-    "left": "the left edge of the vertical groove",
-    "right": "the right edge of the vertical groove",
-}
 
 
 def paper_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
@@ -60,10 +53,10 @@ def paper_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
             max_removals=params.max_removals,
             min_points=params.min_edge_points,
         )
-        if fit.rms_px > params.max_residual_px:
+        if fit.rms_px > params.residual_limit_px:
             problems[edge] = (
                 f"its {int(fit.kept.sum())} points are not on a line (rms {fit.rms_px:.1f} px > "
-                f"{params.max_residual_px} px)"
+                f"{params.residual_limit_px} px)"
             )
             continue
         line: Line = normal_form(fit.slope, fit.intercept, vertical=vertical)
@@ -79,20 +72,3 @@ def paper_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
     if problems:
         raise EdgeNotFoundError(describe_missing(problems), found=tuple(fits))
     return fits
-
-
-def describe_missing(problems: dict[Edge, str]) -> str:
-    """'found 2 of 4 edges: the vertical groove was not found (left: ...; right: ...)'."""
-    missing = set(problems)
-    parts = []
-    if {"top", "bottom"} <= missing:
-        parts.append("the horizontal groove was not found")
-    if {"left", "right"} <= missing:
-        parts.append("the vertical groove was not found")
-    whole = {e for pair in (("top", "bottom"), ("left", "right")) if set(pair) <= missing for e in pair}
-    parts += [f"{_EDGE_LABEL[e]} was not found" for e in EDGES if e in missing and e not in whole]
-    details = "; ".join(f"{e}: {why}" for e, why in problems.items())
-    hint = ""
-    if len(missing) == 4:
-        hint = " Is the crossed-groove artifact in view and in focus?"
-    return f"found {4 - len(missing)} of 4 edges: {', '.join(parts)} ({details}).{hint}"

@@ -51,7 +51,9 @@ class MeasureParams(BaseModel):
         NOMINAL_GROOVE_WIDTH_MM, gt=0, le=50, description="groove width w, the square's side (mm), 3.2.5"
     )
     min_edge_points: int = Field(20, ge=3, description="fewest points that make an edge")
-    max_residual_px: float = Field(2.0, gt=0, description="largest rms distance of an edge's points (px)")
+    max_residual_px: float | None = Field(
+        None, gt=0, description="largest rms distance of an edge's points (px); None: paper 2.0, precise 0.5"
+    )
     max_rotation_deg: float | None = Field(
         None, gt=0, le=45, description="largest in-plane rotation accepted (deg); None: paper 30, precise 40"
     )
@@ -73,6 +75,9 @@ class MeasureParams(BaseModel):
         14.0, ge=0, le=200, description="precise: edge excluded this far beyond the perpendicular groove (px)"
     )
     outlier_sigma: float = Field(3.5, gt=1, le=20, description="precise: inlier band, robust sigmas")
+    min_contrast_dn: float = Field(
+        10.0, gt=0, le=255, description="precise: weakest edge accepted, median step across it (DN)"
+    )
     min_contrast_fraction: float = Field(
         0.5, gt=0, lt=1, description="precise: weakest profile kept, as a fraction of the median contrast"
     )
@@ -102,6 +107,12 @@ class MeasureParams(BaseModel):
         if self.max_rotation_deg is not None:
             return self.max_rotation_deg
         return 30.0 if self.mode == "paper" else 40.0
+
+    @property
+    def residual_limit_px(self) -> float:
+        if self.max_residual_px is not None:
+            return self.max_residual_px
+        return 2.0 if self.mode == "paper" else 0.5
 
     @property
     def backoff_rows(self) -> int:

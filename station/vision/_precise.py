@@ -30,7 +30,7 @@ import numpy as np
 import numpy.typing as npt
 
 from station.vision._edges import EDGES, Edge
-from station.vision._errors import EdgeNotFoundError, GeometryError
+from station.vision._errors import EdgeNotFoundError, GeometryError, describe_missing
 from station.vision._geometry import VERTICAL, Line, intersect
 from station.vision._image import Gray8
 from station.vision._orientation import dominant_rotation_deg
@@ -40,12 +40,6 @@ from station.vision._result import EdgeFit
 FloatArray = npt.NDArray[np.float64]
 
 COARSE_SCALE = 4
-_LABEL = {
-    "top": "the top edge of the horizontal groove",
-    "bottom": "the bottom edge of the horizontal groove",
-    "left": "the left edge of the vertical groove",
-    "right": "the right edge of the vertical groove",
-}
 #: +1 where the intensity rises across the edge in the scan direction (+y or +x), -1 where it falls.
 _POLARITY: dict[Edge, float] = {"top": -1.0, "bottom": 1.0, "left": -1.0, "right": 1.0}
 
@@ -128,6 +122,8 @@ def _band_edges(profile: FloatArray, counts: FloatArray) -> tuple[int, int]:
     smooth[0], smooth[-1] = p[0], p[-1]
     d = np.diff(smooth)
     # the groove: the pair (strongest fall, strongest rise after it) with the deepest dark band between
+    # a real groove's walls stand far above the profile's noise (pure noise has no such band)
+    noise = 1.4826 * float(np.median(np.abs(d - np.median(d))))
     fall = int(np.argmin(d))
     rise_candidates = d[fall + 1 :]
     if rise_candidates.size == 0:
@@ -142,6 +138,8 @@ def _band_edges(profile: FloatArray, counts: FloatArray) -> tuple[int, int]:
         depth2 = d[rise2] - d[fall2]
         if depth2 > depth1:
             best_fall, rise = fall2, rise2
+    if min(-d[best_fall], d[rise]) < max(8.0 * noise, 2.0):
+        raise ValueError("no dark band stands out of the profile's noise")
     return lo + best_fall, lo + rise
 
 
@@ -202,10 +200,9 @@ def coarse_cross(gray: Gray8, params: MeasureParams) -> CoarseCross:
         offsets[falling] = (i_fall + 1 + base) * s
         offsets[rising] = (i_rise + 1 + base) * s
     if len(offsets) < 4:
-        missing = [e for e in EDGES if e not in offsets]
         raise EdgeNotFoundError(
-            f"found {4 - len(missing)} of 4 edges: "
-            + ", ".join(f"{_LABEL[e]} was not found" for e in missing)
+            describe_missing({e: "no dark band across the frame" for e in EDGES if e not in offsets}),
+            found=tuple(offsets),
         )
     illumination = None
     if params.flat_field:
@@ -401,7 +398,11 @@ def precise_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
             if t.size < params.min_edge_points:
                 problems[edge] = f"{t.size} profiles inside the frame (at least {params.min_edge_points})"
                 continue
-            good = strength > params.min_contrast_fraction * _median(strength)
+            contrast = _median(strength)
+            if contrast < params.min_contrast_dn:
+                problems[edge] = f"its contrast is {contrast:.1f} DN (at least {params.min_contrast_dn} DN)"
+                continue
+            good = strength > params.min_contrast_fraction * contrast
             good &= np.abs(a - (models[edge].slope * t + models[edge].intercept)) < (
                 half / 2.0 if last else half - 2.0
             )
@@ -422,7 +423,7 @@ def precise_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
                 problems[edge] = "its points do not lie on a line"
                 continue
             line = _orient(line, vertical=vertical)
-            if rms > params.max_residual_px:
+            if rms > params.residual_limit_px:
                 problems[edge] = f"its points are not on a line (rms {rms:.2f} px)"
                 continue
             new_models[edge] = _model_from_line(line, vertical=vertical)
@@ -437,9 +438,7 @@ def precise_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
                     points=np.ascontiguousarray(pts[inliers]),
                 )
         if problems:
-            found = 4 - len(problems)
-            details = "; ".join(f"{_LABEL[e]}: {why}" for e, why in problems.items())
-            raise EdgeNotFoundError(f"found {found} of 4 edges ({details})", found=tuple(new_models))
+            raise EdgeNotFoundError(describe_missing(problems), found=tuple(new_models))
         models = new_models
         if params.window_px is None and spreads:
             # window half-width ~ 3.5 line-spread sigmas (spread includes the two unit boxes: 2/12 px^2)
