@@ -93,7 +93,10 @@ def test_json_contract_on_a_good_image(capsys: pytest.CaptureFixture[str], image
     np.testing.assert_allclose(lines[:, 0] ** 2 + lines[:, 1] ** 2, 1.0)
     # corners in the order mapped to (0,0), (w,0), (w,w), (0,w): TL, TR, BR, BL in the image
     tl, tr, br, bl = np.array(doc["corners_px"])
-    assert tl[0] < tr[0] and bl[0] < br[0] and tl[1] < bl[1] and tr[1] < br[1]
+    assert tl[0] < tr[0]
+    assert bl[0] < br[0]
+    assert tl[1] < bl[1]
+    assert tr[1] < br[1]
     # each corner lies on its two lines (top/bottom x left/right)
     for corner, (i, j) in zip((tl, tr, br, bl), ((0, 2), (0, 3), (1, 3), (1, 2)), strict=True):
         for k in (i, j):
