@@ -42,7 +42,8 @@ def validation_report(v: ValidationResult) -> str:
     n_ok = int(v.used.sum())
     mode = v.results[0].measurement.params.mode if v.results[0].measurement else "?"
     out = [
-        f"validation of {v.image_set.root} ({mode} mode): {n_ok} of {len(v.results)} images measured",
+        f"validation of {v.image_set.root} ({mode} mode, {v.calibration} calibration): "
+        f"{n_ok} of {len(v.results)} images measured",
         "",
         table(
             ["fit", "mean_um", "max_um", "rms_um", "scale", "rotation_deg"],

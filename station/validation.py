@@ -10,7 +10,10 @@ import numpy.typing as npt
 from station.batch import FileResult, measure_files
 from station.imagesets import ImageSet
 from station.metrology import DisplacementComparison, compare_displacements
-from station.vision import MeasureParams
+from station.vision import MeasureParams, series_centers_mm
+
+#: How a series is scaled: one homography from all its images, or each image's own (the seed's).
+CALIBRATIONS = ("series", "image")
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -27,6 +30,7 @@ class ValidationResult:
     """
 
     image_set: ImageSet
+    calibration: str
     results: tuple[FileResult, ...]
     measured_um: FloatArray
     used: npt.NDArray[np.bool_]
@@ -51,12 +55,17 @@ def center_errors(image_set: ImageSet, results: tuple[FileResult, ...]) -> Float
     return np.asarray(errs, dtype=np.float64)
 
 
-def validate(image_set: ImageSet, params: MeasureParams, *, jobs: int = 1) -> ValidationResult:
+def validate(
+    image_set: ImageSet, params: MeasureParams, *, jobs: int = 1, calibration: str = "series"
+) -> ValidationResult:
     """Measure every image of a validation set and compare measured with commanded displacements.
 
     Displacements are taken relative to the first image measured; images that fail are left out of the
-    comparison (and listed in ``failures``).
+    comparison (and listed in ``failures``). ``calibration``: ``series`` maps every image with one
+    homography fitted from all of them; ``image`` uses each image's own (the seed's convention).
     """
+    if calibration not in CALIBRATIONS:
+        raise ValidationError(f"calibration {calibration!r} is not one of {', '.join(CALIBRATIONS)}")
     if image_set.displacements_um is None:
         raise ValidationError(f"{image_set.root}: no displacements.csv: not a validation set")
     results = tuple(measure_files(image_set.files, params, jobs=jobs))
@@ -65,11 +74,17 @@ def validate(image_set: ImageSet, params: MeasureParams, *, jobs: int = 1) -> Va
         raise ValidationError(
             f"only {int(used.sum())} of {len(results)} images were measured; at least 3 are needed"
         )
-    centers_mm = np.array([r.measurement.center_mm for r in results if r.measurement is not None])
+    measured = [r.measurement for r in results if r.measurement is not None]
+    if calibration == "series":
+        centers_mm = series_centers_mm(
+            [m.center_px for m in measured], [m.corners_px for m in measured], params.groove_width_mm
+        )
+    else:
+        centers_mm = np.array([m.center_mm for m in measured])
     measured_um = (centers_mm - centers_mm[0]) * 1000.0
     commanded = image_set.displacements_um[used]
     commanded = commanded - commanded[0]
     comparison = compare_displacements(commanded, measured_um)
     return ValidationResult(
-        image_set, results, measured_um, used, comparison, center_errors(image_set, results)
+        image_set, calibration, results, measured_um, used, comparison, center_errors(image_set, results)
     )

@@ -14,9 +14,9 @@ Register = Callable[[SubParsers], None]
 
 
 def _core() -> list[Register]:
-    from station.commands import measure, validate
+    from station.commands import measure, sweep, validate
 
-    return [measure.register, validate.register]
+    return [measure.register, validate.register, sweep.register]
 
 
 CORE_COMMANDS: list[Register] = _core()

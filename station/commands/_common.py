@@ -7,6 +7,7 @@ import argparse
 from pydantic import ValidationError
 
 from station.batch import default_jobs
+from station.camera_model import load_camera_model
 from station.vision import MeasureParams, parse_assignments
 
 
@@ -40,6 +41,8 @@ def params_from_args(parser: argparse.ArgumentParser, args: argparse.Namespace) 
         values: dict[str, object] = dict(parse_assignments(args.assignments))
         if args.mode is not None:
             values["mode"] = args.mode
+        if getattr(args, "camera_model", None):
+            values["camera_matrix"], values["dist_coeffs"] = load_camera_model(args.camera_model)
         return MeasureParams.model_validate(values)
     except ValueError as exc:
         if isinstance(exc, ValidationError):

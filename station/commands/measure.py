@@ -6,6 +6,8 @@ import argparse
 import json
 import sys
 
+from tqdm import tqdm
+
 from station.batch import FileResult, default_jobs, measure_files
 from station.commands import SubParsers
 from station.commands._common import add_measure_options, params_from_args
@@ -29,12 +31,16 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     params = params_from_args(parser, args)
     jobs = args.jobs if args.jobs is not None else default_jobs()
     results: list[FileResult] = []
+    # progress on stderr, shown only on a terminal (tqdm's disable=None)
+    bar = tqdm(total=len(args.images), unit="img", file=sys.stderr, disable=None, leave=False)
     for result in measure_files(args.images, params, jobs=jobs):
+        bar.update()
         results.append(result)
         if not result.ok:
             print(f"station measure: {result.file}: {result.error}", file=sys.stderr)
         if args.json:
             print(json.dumps(result.to_json()), flush=True)
+    bar.close()
     if not args.json:
         print(measurement_rows(results))
     return 0 if all(r.ok for r in results) else 1

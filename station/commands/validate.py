@@ -11,7 +11,7 @@ from station.commands import SubParsers
 from station.commands._common import add_measure_options, params_from_args
 from station.imagesets import ImageSetError, load_set
 from station.report import validation_report
-from station.validation import ValidationError, validate
+from station.validation import CALIBRATIONS, ValidationError, validate
 
 
 def register(sub: SubParsers) -> None:
@@ -23,6 +23,12 @@ def register(sub: SubParsers) -> None:
     )
     p.add_argument("set_dir", metavar="SET")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.add_argument(
+        "--calibration",
+        choices=CALIBRATIONS,
+        default="series",
+        help="series: one homography from all images (default); image: each image's own (the seed's)",
+    )
     add_measure_options(p)
     p.set_defaults(func=lambda args: run(p, args))
 
@@ -31,7 +37,8 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     params = params_from_args(parser, args)
     try:
         image_set = load_set(args.set_dir)
-        result = validate(image_set, params, jobs=args.jobs if args.jobs is not None else default_jobs())
+        jobs = args.jobs if args.jobs is not None else default_jobs()
+        result = validate(image_set, params, jobs=jobs, calibration=args.calibration)
     except (ImageSetError, ValidationError) as exc:
         print(f"station validate: {exc}", file=sys.stderr)
         return 1
@@ -40,6 +47,7 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         doc = {
             "set": str(image_set.root),
             "mode": params.mode,
+            "calibration": result.calibration,
             "images": len(result.results),
             "measured": int(result.used.sum()),
             **{

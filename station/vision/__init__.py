@@ -35,6 +35,7 @@ from station.vision._params import (
     parse_assignments,
 )
 from station.vision._result import EdgeFit, Measurement
+from station.vision._series import series_centers_mm, series_homography
 from station.vision._testbox import acceptance_mask, segment_edge, testbox_scan
 
 __all__ = [
@@ -67,6 +68,8 @@ __all__ = [
     "parse_assignments",
     "recursive_fit",
     "segment_edge",
+    "series_centers_mm",
+    "series_homography",
     "square_homography",
     "testbox_scan",
     "to_gray8",

@@ -16,7 +16,7 @@ import numpy as np
 import numpy.typing as npt
 
 
-def dominant_rotation_deg(gray: npt.NDArray[np.uint8]) -> tuple[float, float]:
+def dominant_rotation_deg(gray: npt.NDArray[np.uint8] | npt.NDArray[np.float32]) -> tuple[float, float]:
     """Return ``(rotation_deg, strength)``; strength in [0, 1] (1: all gradients agree)."""
     # Scharr's kernel is the most rotation-invariant 3x3 derivative; a light blur keeps sharp edges from
     # biasing the angle toward the pixel axes (Sobel on a sharp edge is off by ~1-2 deg at 20 deg).

@@ -50,7 +50,7 @@ class MeasureParams(BaseModel):
     groove_width_mm: float = Field(
         NOMINAL_GROOVE_WIDTH_MM, gt=0, le=50, description="groove width w, the square's side (mm), 3.2.5"
     )
-    min_edge_points: int = Field(20, ge=3, description="fewest points that make an edge")
+    min_edge_points: int = Field(8, ge=3, description="fewest points that make an edge")
     max_residual_px: float | None = Field(
         None, gt=0, description="largest rms distance of an edge's points (px); None: paper 2.0, precise 0.5"
     )

@@ -16,7 +16,8 @@ with the stages that limit its accuracy replaced (accuracy.md).
    Huber M-estimate (``cv2.fitLine``), then total least squares on the points within ``outlier_sigma``
    robust standard deviations; glints, scratches and salt-and-pepper give off-line points or weak
    profiles, both rejected. The rounded land corners are excluded by a margin around the crossing.
-4. Optional lens-distortion correction of the edge points from an OpenCV camera model.
+4. Optional lens-distortion correction: the image is resampled to an ideal pinhole camera with an
+   OpenCV camera model before anything else (results in undistorted pixel coordinates).
 """
 
 from __future__ import annotations
@@ -70,9 +71,9 @@ def _flat_basis(x: FloatArray, y: FloatArray, shape: tuple[int, int]) -> FloatAr
 
 
 @lru_cache(maxsize=8)
-def _small_basis(small_shape: tuple[int, int], shape: tuple[int, int]) -> FloatArray:
+def _small_basis(small_shape: tuple[int, int], shape: tuple[int, int], scale: int) -> FloatArray:
     """Flat-field polynomial terms at the reduced image's pixel centres, (sh*sw, terms)."""
-    xf, yf = _centred_grid(small_shape, shape)
+    xf, yf = _centred_grid(small_shape, shape, scale)
     h, w = shape
     basis = _flat_basis((xf + (w - 1) / 2.0).ravel(), (yf + (h - 1) / 2.0).ravel(), shape)
     basis.setflags(write=False)
@@ -80,18 +81,18 @@ def _small_basis(small_shape: tuple[int, int], shape: tuple[int, int]) -> FloatA
 
 
 def fit_illumination(
-    small: npt.NDArray[np.float32], land: npt.NDArray[np.bool_], shape: tuple[int, int]
+    small: npt.NDArray[np.float32], land: npt.NDArray[np.bool_], shape: tuple[int, int], *, scale: int
 ) -> npt.NDArray[np.float32] | None:
     """The relative illumination (vignetting, light gradient) over the frame, fitted on the lands.
 
     A degree-4 polynomial in the image coordinates is fitted to the land pixels of the reduced image
-    (every fifth one is plenty), refitted once without scratches and glints (beyond 3 MAD), normalised
+    (every second one is plenty), refitted once without scratches and glints (beyond 3 MAD), normalised
     to mean 1 over the lands and resampled to full resolution (float32, ``shape``). None when too few
     land pixels are seen.
     """
     sh, sw = small.shape
-    basis = _small_basis((sh, sw), shape)
-    idx = np.flatnonzero(land.ravel())[::5]
+    basis = _small_basis((sh, sw), shape, scale)
+    idx = np.flatnonzero(land.ravel())[::2]
     if idx.size < 10 * len(_FLAT_TERMS):
         return None
     A = basis[idx]
@@ -123,7 +124,7 @@ def _band_edges(profile: FloatArray, counts: FloatArray) -> tuple[int, int]:
     d = np.diff(smooth)
     # the groove: the pair (strongest fall, strongest rise after it) with the deepest dark band between
     # a real groove's walls stand far above the profile's noise (pure noise has no such band)
-    noise = 1.4826 * float(np.median(np.abs(d - np.median(d))))
+    noise = 1.4826 * _median(np.abs(d - _median(d)))
     fall = int(np.argmin(d))
     rise_candidates = d[fall + 1 :]
     if rise_candidates.size == 0:
@@ -144,12 +145,14 @@ def _band_edges(profile: FloatArray, counts: FloatArray) -> tuple[int, int]:
 
 
 @lru_cache(maxsize=8)
-def _centred_grid(small_shape: tuple[int, int], shape: tuple[int, int]) -> tuple[FloatArray, FloatArray]:
+def _centred_grid(
+    small_shape: tuple[int, int], shape: tuple[int, int], scale: int = COARSE_SCALE
+) -> tuple[FloatArray, FloatArray]:
     """Full-resolution coordinates (relative to the image centre) of the reduced image's pixel centres.
 
     Reduced pixel (i, j) covers full-res [s*j - 0.5, s*j + s - 0.5]: its centre is s*j + (s - 1)/2.
     """
-    s = COARSE_SCALE
+    s = scale
     sh, sw = small_shape
     h, w = shape
     ys, xs = np.mgrid[0:sh, 0:sw].astype(np.float64)
@@ -165,7 +168,7 @@ def coarse_cross(gray: Gray8, params: MeasureParams) -> CoarseCross:
     h, w = gray.shape
     s = COARSE_SCALE
     small = cv2.resize(gray, (w // s, h // s), interpolation=cv2.INTER_AREA).astype(np.float32)
-    rotation_deg, strength = dominant_rotation_deg(small.astype(np.uint8))
+    rotation_deg, strength = dominant_rotation_deg(small)
     max_rot = params.rotation_limit_deg
     if strength < 0.05:
         raise EdgeNotFoundError(
@@ -212,7 +215,13 @@ def coarse_cross(gray: Gray8, params: MeasureParams) -> CoarseCross:
         u_mid = (offsets["left"] + offsets["right"]) / 2.0
         u_half = (offsets["right"] - offsets["left"]) / 2.0 + margin
         land = (np.abs(v - v_mid) > v_half) & (np.abs(u - u_mid) > u_half)
-        illumination = fit_illumination(small, land, (h, w))
+        # the illumination is smooth: fit it on the image reduced once more (2x2 of the reduced pixels)
+        sh2, sw2 = small.shape[0] // 2, small.shape[1] // 2
+        tiny = np.asarray(
+            cv2.resize(small[: 2 * sh2, : 2 * sw2], (sw2, sh2), interpolation=cv2.INTER_AREA), np.float32
+        )
+        land2 = land[: 2 * sh2 : 2, : 2 * sw2 : 2] & land[1 : 2 * sh2 : 2, 1 : 2 * sw2 : 2]
+        illumination = fit_illumination(tiny, land2, (h, w), scale=2 * s)
     return CoarseCross(theta, offsets, illumination)
 
 
@@ -236,12 +245,15 @@ def _initial_model(coarse: CoarseCross, edge: Edge, shape: tuple[int, int]) -> _
     return _EdgeModel(s / c, cy + (off - cx * s) / c)
 
 
-def _crossing_along(models: dict[Edge, _EdgeModel], edge: Edge) -> tuple[float, float]:
-    """(along coordinate of the crossing's centre, half-width of the perpendicular groove) for ``edge``."""
+def _crossing_extent(models: dict[Edge, _EdgeModel]) -> dict[Edge, tuple[float, float]]:
+    """Per edge: (along coordinate of the crossing's centre, half-width of the perpendicular groove)."""
     lines = {e: _line_of(m, vertical=e in VERTICAL) for e, m in models.items()}
     pts = np.array([intersect(lines[a], lines[b]) for a in ("top", "bottom") for b in ("left", "right")])
-    along = pts[:, 1] if edge in VERTICAL else pts[:, 0]
-    return float(along.mean()), float(along.max() - along.min()) / 2.0
+    out: dict[Edge, tuple[float, float]] = {}
+    for edge in EDGES:
+        along = pts[:, 1] if edge in VERTICAL else pts[:, 0]
+        out[edge] = (float(along.mean()), float(along.max() - along.min()) / 2.0)
+    return out
 
 
 def _line_of(model: _EdgeModel, *, vertical: bool) -> Line:
@@ -251,7 +263,7 @@ def _line_of(model: _EdgeModel, *, vertical: bool) -> Line:
     return (-model.slope / norm, 1.0 / norm, model.intercept / norm)
 
 
-def _suppress_impulses(samples: FloatArray, threshold: float) -> None:
+def _suppress_impulses(samples: npt.NDArray[np.float32], threshold: float) -> None:
     """Replace isolated impulses (salt-and-pepper, hot pixels) in profiles across an edge, in place.
 
     A clean blurred edge profile is monotonic, and the median of three neighbours leaves a monotonic
@@ -272,7 +284,9 @@ def _profile_points(
     along: npt.NDArray[np.intp],
     half: int,
     impulse_dn: float,
-) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    *,
+    with_spread: bool = True,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray | None]:
     """Sub-pixel edge positions along ``along`` (module docstring, step 2).
 
     Returns ``(along, across, strength, spread)`` of the profiles that fit inside the image:
@@ -287,16 +301,25 @@ def _profile_points(
     along, mu, base = along[inside], mu[inside], base[inside]
     k = base[:, None] + np.arange(2 * half + 2)[None, :]
     flat = along[:, None] * w + k if edge in VERTICAL else k * w + along[:, None]
-    samples = np.take(img, flat).astype(np.float64)
+    samples = np.take(img, flat)
     _suppress_impulses(samples, impulse_dn)
-    d = _POLARITY[edge] * (samples[:, 1:] - samples[:, :-1])
-    pos = k[:, :-1] + 0.5
-    weight = np.clip(half + 0.5 - np.abs(pos - mu[:, None]), 0.0, 1.0)
+    d = samples[:, 1:] - samples[:, :-1]
+    if _POLARITY[edge] < 0:
+        np.negative(d, out=d)
+    # positions relative to each window's first sample keep float32 exact to ~1e-6 px
+    pos = np.arange(2 * half + 1, dtype=np.float32) + np.float32(0.5)
+    mu_rel = (mu - base).astype(np.float32)
+    weight = np.clip(np.float32(half + 0.5) - np.abs(pos[None, :] - mu_rel[:, None]), 0.0, 1.0)
     wd = weight * d
-    strength = wd.sum(axis=1)
+    strength = wd.sum(axis=1, dtype=np.float64)
     safe = np.where(strength > 0, strength, 1.0)
-    across = (wd * pos).sum(axis=1) / safe
-    spread = (wd * (pos - across[:, None]) ** 2).sum(axis=1) / safe
+    rel = (wd @ pos).astype(np.float64) / safe
+    across = base + rel
+    spread = (
+        ((wd * (pos[None, :] - rel[:, None].astype(np.float32)) ** 2).sum(axis=1) / safe)
+        if with_spread
+        else None
+    )
     return along.astype(np.float64), across, strength, spread
 
 
@@ -359,20 +382,40 @@ def _model_from_line(line: Line, *, vertical: bool) -> _EdgeModel:
     return _EdgeModel(-a / b, c / b)
 
 
-def _undistort(points: FloatArray, params: MeasureParams) -> FloatArray:
+@lru_cache(maxsize=4)
+def _undistort_maps(
+    camera_matrix: tuple[float, ...], dist_coeffs: tuple[float, ...], shape: tuple[int, int]
+) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
+    K = np.asarray(camera_matrix, np.float64).reshape(3, 3)
+    h, w = shape
+    map1, map2 = cv2.initUndistortRectifyMap(K, np.asarray(dist_coeffs), None, K, (w, h), cv2.CV_32FC1)
+    return np.asarray(map1, np.float32), np.asarray(map2, np.float32)
+
+
+def undistort(img: npt.NDArray[np.float32], params: MeasureParams) -> npt.NDArray[np.float32]:
+    """The image as an ideal pinhole camera with the same camera matrix would see it (no distortion).
+
+    Straight edges become straight again; results are then in undistorted pixel coordinates.
+    Bilinear resampling: a symmetric kernel moves no edge.
+    """
     if params.camera_matrix is None:
-        return points
-    K = np.asarray(params.camera_matrix, np.float64)
-    dist = np.asarray(params.dist_coeffs or [], np.float64)
-    out = cv2.undistortPoints(points.reshape(-1, 1, 2), K, dist, P=K)
-    return np.asarray(out, np.float64).reshape(-1, 2)
+        return img
+    K = tuple(float(v) for row in params.camera_matrix for v in row)
+    dist = tuple(float(v) for v in (params.dist_coeffs or []))
+    h, w = img.shape
+    map1, map2 = _undistort_maps(K, dist, (h, w))
+    return np.asarray(
+        cv2.remap(img, map1, map2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE), np.float32
+    )
 
 
 def precise_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
     """Four robust sub-pixel edge lines (module docstring); raises EdgeNotFoundError or GeometryError."""
     h, w = gray.shape
+    img = undistort(gray.astype(np.float32), params)
+    if params.camera_matrix is not None:
+        gray = np.clip(np.rint(img), 0, 255).astype(np.uint8)  # the coarse stage works on 8 bits
     coarse = coarse_cross(gray, params)
-    img = gray.astype(np.float32)
     if coarse.illumination is not None:
         img /= coarse.illumination  # flat field: vignetting would bias the profiles' centroids
     models = {e: _initial_model(coarse, e, (h, w)) for e in EDGES}
@@ -385,15 +428,16 @@ def precise_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
         last = pass_no == params.passes - 1
         spreads: list[float] = []
         new_models: dict[Edge, _EdgeModel] = {}
+        crossing = _crossing_extent(models)
         for edge in EDGES:
             vertical = edge in VERTICAL
             length = h if vertical else w
-            centre_along, half_groove = _crossing_along(models, edge)
-            # passes before the last only steer the windows: every 4th profile is plenty
-            along = np.arange(border, length - border, 1 if last else 4, dtype=np.intp)
+            centre_along, half_groove = crossing[edge]
+            # passes before the last only steer the windows: every 8th profile is plenty
+            along = np.arange(border, length - border, 1 if last else 8, dtype=np.intp)
             keep = np.abs(along - centre_along) > half_groove + params.corner_margin_px
             t, a, strength, spread = _profile_points(
-                img, edge, models[edge], along[keep], half, params.impulse_dn
+                img, edge, models[edge], along[keep], half, params.impulse_dn, with_spread=not last
             )
             if t.size < params.min_edge_points:
                 problems[edge] = f"{t.size} profiles inside the frame (at least {params.min_edge_points})"
@@ -409,11 +453,10 @@ def precise_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
             if good.sum() < params.min_edge_points:
                 problems[edge] = f"only {int(good.sum())} profiles show the edge"
                 continue
-            spreads.append(_median(spread[good]))
+            if spread is not None:
+                spreads.append(_median(spread[good]))
             x, y = (a[good], t[good]) if vertical else (t[good], a[good])
             pts = np.column_stack([x, y])
-            if last:
-                pts = _undistort(pts, params)
             prior = _line_of(models[edge], vertical=vertical)
             try:
                 line, inliers, rms = _robust_tls(

@@ -1,0 +1,1 @@
+"""Benchmarks of the measurement core (not part of ``make test``): ``make bench``."""

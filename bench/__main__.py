@@ -1,0 +1,186 @@
+"""``make bench``: accuracy and speed of paper mode, precise mode and a plain-OpenCV baseline.
+
+On sets rendered with the ``nominal`` and ``hard`` presets (48 random poses each, and the seed's
+40-position validation pattern), one table: centre error mean/max (px and um), validation
+displacement error mean/max (um) raw (rigid fit) and parallelogram (affine fit), ms per image on one
+core; with the Cramer-Rao bound at that noise beside them (accuracy.md). Written to
+``bench/results/bench.json`` too.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import cv2  # noqa: E402
+import numpy as np  # noqa: E402
+
+from bench.baseline import BaselineError, measure_baseline  # noqa: E402
+from sim.imageset import render_random_set, render_validation_set  # noqa: E402
+from sim.presets import get_preset  # noqa: E402
+from station.imageio import read_image  # noqa: E402
+from station.imagesets import load_set  # noqa: E402
+from station.metrology import compare_displacements  # noqa: E402
+from station.vision import MeasureParams, MeasurementError, measure, series_centers_mm  # noqa: E402
+
+UM_PER_PX = 10.0  # the simulated camera: 100 px/mm
+Method = Callable[[np.ndarray], tuple[tuple[float, float], tuple[float, float], np.ndarray | None]]
+
+
+def _station(params: MeasureParams) -> Method:
+    def run(image: np.ndarray) -> tuple[tuple[float, float], tuple[float, float], np.ndarray | None]:
+        m = measure(image, params)
+        return m.center_px, m.center_mm, m.corners_px
+
+    return run
+
+
+def _baseline(image: np.ndarray) -> tuple[tuple[float, float], tuple[float, float], np.ndarray | None]:
+    px, mm = measure_baseline(image)
+    return px, mm, None
+
+
+METHODS: dict[str, Method] = {
+    "paper": _station(MeasureParams(mode="paper")),
+    "precise": _station(MeasureParams(mode="precise")),
+    "opencv-baseline": _baseline,
+}
+
+
+def crb_centre_px(preset_name: str, rows_per_edge: float = 450.0) -> float:
+    """Expected radial centre error at the Cramer-Rao bound (accuracy.md), px.
+
+    sigma_row = (sigma_n / C) sqrt(2 sqrt(pi) sigma_b) per scan line; an edge over N lines gives
+    sigma_row / sqrt(N); the centre's x (y) is the mean of two edges: / sqrt(2) per axis; the mean
+    radial error of a 2-D normal with that sigma per axis is sigma sqrt(pi / 2).
+    """
+    p = get_preset(preset_name)
+    contrast = p.land_level_dn - p.paint_level_dn
+    shot = math.sqrt(p.shot_noise_gain_dn_per_e * (p.land_level_dn + p.paint_level_dn) / 2.0)
+    sigma_n = math.sqrt(p.read_noise_dn**2 + shot**2 + 1.0 / 12.0)
+    sigma_row = sigma_n / contrast * math.sqrt(2.0 * math.sqrt(math.pi) * p.blur_sigma_px)
+    sigma_axis = sigma_row / math.sqrt(rows_per_edge) / math.sqrt(2.0)
+    return sigma_axis * math.sqrt(math.pi / 2.0)
+
+
+def run_random(set_dir: Path, method: Method) -> dict[str, Any]:
+    s = load_set(set_dir)
+    errors, times, failures = [], [], 0
+    for f in s.files:
+        image = read_image(f)
+        t0 = time.perf_counter()
+        try:
+            px, _, _ = method(image)  # type: ignore[arg-type]
+        except (MeasurementError, BaselineError, cv2.error, np.linalg.LinAlgError):
+            failures += 1
+            continue
+        times.append(time.perf_counter() - t0)
+        truth = s.truth[f.name]
+        errors.append(math.hypot(px[0] - truth.center_px[0], px[1] - truth.center_px[1]))
+    e = np.array(errors) if errors else np.array([np.nan])
+    return {
+        "images": len(s.files),
+        "failures": failures,
+        "center_mean_px": float(e.mean()),
+        "center_max_px": float(e.max()),
+        "ms_per_image": 1000.0 * float(np.median(times)) if times else float("nan"),
+    }
+
+
+def run_validation(set_dir: Path, method: Method, *, series: bool) -> dict[str, Any]:
+    s = load_set(set_dir)
+    assert s.displacements_um is not None
+    centers_mm, centers_px, corners, used = [], [], [], []
+    for i, f in enumerate(s.files):
+        try:
+            px, mm, c = method(read_image(f))  # type: ignore[arg-type]
+        except (MeasurementError, BaselineError, cv2.error, np.linalg.LinAlgError):
+            continue
+        centers_mm.append(mm)
+        centers_px.append(px)
+        corners.append(c)
+        used.append(i)
+    if series and all(c is not None for c in corners):
+        mm = series_centers_mm(centers_px, corners, 25.4 / 32)  # type: ignore[arg-type]
+    else:
+        mm = np.array(centers_mm)
+    measured = (mm - mm[0]) * 1000.0
+    commanded = s.displacements_um[used] - s.displacements_um[used][0]
+    comp = compare_displacements(commanded, measured)
+    return {
+        "measured": len(used),
+        "raw_mean_um": comp.rigid.mean,
+        "raw_max_um": comp.rigid.max,
+        "parallelogram_mean_um": comp.affine.mean,
+        "parallelogram_max_um": comp.affine.max,
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m bench", description=__doc__)
+    parser.add_argument("--data", type=Path, default=Path("bench/results/data"), help="rendered sets")
+    parser.add_argument("--out", type=Path, default=Path("bench/results/bench.json"))
+    parser.add_argument("--count", type=int, default=48, help="random poses per preset")
+    args = parser.parse_args(argv)
+    cv2.setNumThreads(1)
+    results: dict[str, Any] = {"presets": {}, "um_per_px": UM_PER_PX}
+    for preset in ("nominal", "hard"):
+        rnd = args.data / f"random-{preset}-{args.count}"
+        val = args.data / f"validation-{preset}"
+        if not (rnd / "truth.json").exists():
+            render_random_set(rnd, preset=preset, count=args.count, seed=7, force=True)
+        if not (val / "truth.json").exists():
+            render_validation_set(val, preset=preset, seed=3, force=True)
+        entry: dict[str, Any] = {"crb_center_mean_px": crb_centre_px(preset), "methods": {}}
+        for name, method in METHODS.items():
+            print(f"bench: {preset} {name} ...", file=sys.stderr)
+            row = run_random(rnd, method)
+            row["validation"] = run_validation(val, method, series=False)
+            if name == "precise":
+                row["validation_series"] = run_validation(val, method, series=True)
+            entry["methods"][name] = row
+        results["presets"][preset] = entry
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(results, indent=2))
+    print(render_table(results))
+    print(f"\n(written to {args.out})")
+    return 0
+
+
+def render_table(results: dict[str, Any]) -> str:
+    head = (
+        f"{'preset':8} {'method':22} {'centre mean/max px':>20} {'centre mean/max um':>20} "
+        f"{'raw mean/max um':>18} {'parallelogram um':>18} {'ms/img':>7}"
+    )
+    lines = [head, "-" * len(head)]
+    for preset, entry in results["presets"].items():
+        for name, row in entry["methods"].items():
+            variants = [("validation", name + " (per-image)")]
+            if "validation_series" in row:
+                variants.append(("validation_series", name + " (series)"))
+            for key, label in variants:
+                v = row[key]
+                lines.append(
+                    f"{preset:8} {label:22} "
+                    f"{row['center_mean_px']:9.4f} /{row['center_max_px']:8.4f} "
+                    f"{row['center_mean_px'] * UM_PER_PX:9.3f} /{row['center_max_px'] * UM_PER_PX:8.3f} "
+                    f"{v['raw_mean_um']:8.3f} /{v['raw_max_um']:7.3f} "
+                    f"{v['parallelogram_mean_um']:8.3f} /{v['parallelogram_max_um']:7.3f} "
+                    f"{row['ms_per_image']:7.2f}"
+                )
+        crb = entry["crb_center_mean_px"]
+        lines.append(f"{preset:8} {'Cramer-Rao bound':22} {crb:9.4f}  (mean radial) {crb * UM_PER_PX:9.4f} um")
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
