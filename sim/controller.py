@@ -1,0 +1,474 @@
+"""A simulated C500C controller on a real pseudo-terminal: the twin the robot driver talks to.
+
+The twin owns the master side of a pty (``pty.openpty``); a driver opens the slave path (``port``)
+with pyserial exactly as it would open ``/dev/ttyS0``. It echoes what is typed, prints the prompt,
+answers in the dialect of docs/crs-c500c-protocol.md (``sim._controller_shell``), moves a simulated
+arm in time (``sim._controller_arm``) and injects faults on request (``sim._controller_faults``).
+
+Start one in-process::
+
+    with start_twin(time_scale=100, seed=1) as twin:
+        robot = station.config.build("robot", "crs_a465", port=twin.port)
+
+or as a process shared by several programs: ``station sim controller`` prints the port path.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import pty
+import select
+import tempfile
+import threading
+import time
+import tty
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from sim._controller_arm import Arm, ArmParameters, MotionRecord
+from sim._controller_faults import Fault, FaultKind, garble, parse_fault
+from sim._controller_shell import Outcome, Shell
+from station.kinematics import A465_JOINT_LIMITS_DEG, Kinematics
+
+log = logging.getLogger(__name__)
+
+Six = tuple[float, float, float, float, float, float]
+CTRL_C = 0x03
+CTRL_E = 0x05
+
+
+def _six(value: Any) -> Any:
+    """Accept one number for all six joints."""
+    if isinstance(value, int | float):
+        return (float(value),) * 6
+    return value
+
+
+class TwinSettings(BaseModel):
+    """How the twin behaves. Speeds, accelerations and encoder counts per the protocol doc [A]."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    shell: Literal["system", "application"] = "system"
+    app_name: str = Field("ash", pattern=r"^\S+$")
+    echo: bool = True
+    motion_blocks: bool = Field(True, description="the prompt returns when the motion ends [A]")
+    time_scale: float = Field(1.0, gt=0, description="100 runs every motion 100x faster than real")
+    seed: int | None = Field(None, description="random repeatability error; None: fresh entropy")
+    power: bool = True
+    homed: bool = True
+    speed_pct: int = Field(50, ge=1, le=100)
+    max_speed_deg_s: Six = (180.0, 180.0, 180.0, 172.0, 172.0, 172.0)
+    accel_deg_s2: Six = (720.0, 720.0, 720.0, 1430.0, 1430.0, 1430.0)
+    counts_per_deg: Six = (400000 / 360, 400000 / 360, 400000 / 360, 200000 / 360, 200000 / 360, 200000 / 360)
+    repeat_sigma_deg: Six = Field((0.001,) * 6, description="random part of the attained error (1 sigma)")
+    systematic_deg: Six = Field((0.0,) * 6, description="constant part of the attained error")
+    backlash_deg: Six = Field((0.0,) * 6, description="attained error signed by the direction of approach")
+    joint_limits_deg: tuple[tuple[float, float], ...] = A465_JOINT_LIMITS_DEG
+    home_pose_deg: Six = (0.0,) * 6
+    ready_pose_deg: Six = (0.0, 0.0, 90.0, 0.0, 90.0, 0.0)
+    start_pose_deg: Six | None = Field(None, description="where the arm starts; None: the ready pose")
+    homing_extra_s: float = Field(2.0, ge=0, description="index search time added to home")
+    link: str | None = Field(
+        None, description="a symlink kept pointing at the current pty ('auto': in a temporary directory)"
+    )
+    faults: tuple[Fault, ...] = ()
+
+    @field_validator("repeat_sigma_deg", "systematic_deg", "backlash_deg", mode="before")
+    @classmethod
+    def _broadcast(cls, value: Any) -> Any:
+        return _six(value)
+
+    @field_validator("faults", mode="before")
+    @classmethod
+    def _parse_faults(cls, value: Any) -> Any:
+        if isinstance(value, list | tuple):
+            return tuple(parse_fault(v) if isinstance(v, str) else v for v in value)
+        return value
+
+
+class ControllerTwin:
+    """The simulated controller: a pty, a shell, an arm, and a server thread between them."""
+
+    def __init__(
+        self,
+        settings: TwinSettings | None = None,
+        *,
+        clock: Callable[[], float] = time.monotonic,
+        **overrides: Any,
+    ) -> None:
+        base = settings.model_dump() if settings is not None else {}
+        self.settings = TwinSettings.model_validate({**base, **overrides})
+        s = self.settings
+        self.kinematics = Kinematics(joint_limits_deg=s.joint_limits_deg)
+        params = ArmParameters(
+            max_speed_deg_s=s.max_speed_deg_s,
+            accel_deg_s2=s.accel_deg_s2,
+            counts_per_deg=s.counts_per_deg,
+            repeat_sigma_deg=s.repeat_sigma_deg,
+            systematic_deg=s.systematic_deg,
+            backlash_deg=s.backlash_deg,
+            home_pose_deg=s.home_pose_deg,
+            ready_pose_deg=s.ready_pose_deg,
+            start_pose_deg=s.start_pose_deg or s.ready_pose_deg,
+            homing_extra_s=s.homing_extra_s,
+            time_scale=s.time_scale,
+        )
+        self.arm = Arm(
+            params,
+            self.kinematics,
+            power=s.power,
+            homed=s.homed,
+            speed_pct=s.speed_pct,
+            rng=np.random.default_rng(s.seed),
+            clock=clock,
+        )
+        self.shell = Shell(self.arm, kind=s.shell, app_name=s.app_name)
+        self._clock = clock
+        self._lock = threading.Lock()
+        self.received: list[str] = []
+        self._commands_seen = 0
+        self._faults: list[tuple[int, Fault]] = [(f.at, f) for f in s.faults]
+        self._master: int | None = None
+        self._slave: int | None = None
+        self._pty_path: str | None = None
+        self._link_dir: tempfile.TemporaryDirectory[str] | None = None
+        self._link: str | None = None if s.link in (None, "auto") else s.link
+        self._thread: threading.Thread | None = None
+        self._closing = threading.Event()
+        self._wake_r, self._wake_w = os.pipe()
+        self._unplug_requested = threading.Event()
+        self._replug_requested = threading.Event()
+        self._replugged = threading.Event()
+        self._plugged = threading.Event()
+        self._replug_at: float | None = None
+        self._line = bytearray()
+        self._inbox = bytearray()
+        self._last_was_cr = False
+
+    # ---------------------------------------------------------------- lifecycle
+
+    def start(self) -> ControllerTwin:
+        """Open the pty and start serving; returns self."""
+        if self._thread is not None:
+            return self
+        self._open_pty()
+        self._thread = threading.Thread(target=self._serve, name=f"crs-twin {self.port}", daemon=True)
+        self._thread.start()
+        log.info(
+            "controller twin on %s (%s shell, time scale %g)",
+            self.port,
+            self.settings.shell,
+            self.settings.time_scale,
+        )
+        return self
+
+    def close(self) -> None:
+        """Stop serving, close the pty and remove the link; safe to call twice."""
+        if self._closing.is_set():
+            return
+        self._closing.set()
+        self._wake()
+        if self._thread is not None:
+            self._thread.join(timeout=10)
+            if self._thread.is_alive():
+                log.error("controller twin thread did not stop")
+        self._close_pty()
+        self._remove_link()
+        if self._link_dir is not None:
+            self._link_dir.cleanup()
+        for fd in (self._wake_r, self._wake_w):
+            with contextlib.suppress(OSError):
+                os.close(fd)
+
+    def __enter__(self) -> ControllerTwin:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def port(self) -> str:
+        """What a driver opens: the stable link when one is kept, else the pty's slave path."""
+        if self._link is not None:
+            return self._link
+        if self._pty_path is None:
+            raise RuntimeError("the twin is not started")
+        return self._pty_path
+
+    @property
+    def pty_path(self) -> str | None:
+        """The current pty slave path (None while unplugged)."""
+        return self._pty_path
+
+    @property
+    def motion_log(self) -> list[MotionRecord]:
+        """Every move the arm executed, as commanded."""
+        return list(self.arm.motion_log)
+
+    # ---------------------------------------------------------------- control from outside
+
+    def inject(self, fault: Fault | str) -> None:
+        """Aim ``fault`` at the ``fault.at``-th command line from now."""
+        if isinstance(fault, str):
+            fault = parse_fault(fault)
+        with self._lock:
+            self._faults.append((self._commands_seen + fault.at, fault))
+
+    def set_power(self, on: bool) -> None:
+        """Arm power on or off (as the operator would at the controller)."""
+        self.arm.set_power(on)
+
+    def unplug(self) -> None:
+        """Pull the cable now: the pty disappears."""
+        self._unplug_requested.set()
+        self._wake()
+
+    def replug(self, timeout_s: float = 5.0) -> None:
+        """Plug the cable back: a new pty; :attr:`port` (with a link) stays the same path."""
+        self._replugged.clear()
+        self._replug_requested.set()
+        self._wake()
+        if not self._replugged.wait(timeout_s):
+            raise RuntimeError("the twin did not come back")
+
+    def wait_plugged(self, timeout_s: float = 5.0) -> bool:
+        """Block until the pty is back after a disconnect (True) or ``timeout_s`` passes (False)."""
+        return self._plugged.wait(timeout_s)
+
+    @property
+    def commands_seen(self) -> int:
+        with self._lock:
+            return self._commands_seen
+
+    # ---------------------------------------------------------------- pty
+
+    def _open_pty(self) -> None:
+        master, slave = pty.openpty()
+        tty.setraw(slave)  # no echo or CR translation by the line discipline: the twin echoes itself
+        os.set_blocking(master, False)
+        self._master, self._slave = master, slave
+        self._pty_path = os.ttyname(slave)
+        if self.settings.link is not None:
+            self._point_link()
+        self._plugged.set()
+        log.debug("pty %s", self._pty_path)
+
+    def _point_link(self) -> None:
+        assert self._pty_path is not None
+        if self._link is None:
+            self._link_dir = tempfile.TemporaryDirectory(prefix="crs-twin-")
+            self._link = str(Path(self._link_dir.name) / "c500c")
+        tmp = f"{self._link}.{os.getpid()}.tmp"
+        if os.path.lexists(tmp):
+            os.unlink(tmp)
+        os.symlink(self._pty_path, tmp)
+        os.replace(tmp, self._link)
+
+    def _remove_link(self) -> None:
+        if self._link is not None and os.path.islink(self._link):
+            os.unlink(self._link)
+
+    def _close_pty(self) -> None:
+        for fd in (self._master, self._slave):
+            if fd is not None:
+                with contextlib.suppress(OSError):
+                    os.close(fd)
+        self._master = self._slave = None
+        self._pty_path = None
+
+    def _wake(self) -> None:
+        with contextlib.suppress(OSError):
+            os.write(self._wake_w, b"x")
+
+    def _do_unplug(self, replug_after_s: float | None) -> None:
+        log.info("twin: cable pulled%s", "" if replug_after_s is None else f", back in {replug_after_s:g} s")
+        self._plugged.clear()
+        self._close_pty()
+        self._remove_link()
+        self._line.clear()
+        self._inbox.clear()
+        self._replug_at = None if replug_after_s is None else time.monotonic() + replug_after_s
+
+    def _do_replug(self) -> None:
+        if self._master is None:
+            self._open_pty()
+            log.info("twin: back on %s", self._pty_path)
+        self._replug_at = None
+        self._replugged.set()
+
+    # ---------------------------------------------------------------- I/O
+
+    def _write(self, text: str) -> None:
+        master = self._master
+        if master is None:
+            return
+        data = text.encode("latin-1", errors="replace")
+        while data and not self._closing.is_set():
+            try:
+                written = os.write(master, data)
+                data = data[written:]
+            except BlockingIOError:
+                select.select([], [master], [], 0.05)
+            except OSError as exc:
+                log.debug("twin write: %s", exc)
+                return
+
+    def _wait_input(self, timeout_s: float | None) -> bytes | None:
+        """Bytes from the host, or None on timeout / wake-up."""
+        master = self._master
+        fds = [self._wake_r] if master is None else [master, self._wake_r]
+        readable, _, _ = select.select(fds, [], [], timeout_s)
+        if self._wake_r in readable:
+            os.read(self._wake_r, 1024)
+            return None
+        if master is not None and master in readable:
+            try:
+                return os.read(master, 4096)
+            except BlockingIOError:
+                return None
+            except OSError:  # no slave open (EIO): wait for one
+                time.sleep(0.01)
+                return None
+        return None
+
+    def _sleep(self, seconds: float) -> bool:
+        """Sleep, watching the line for Ctrl-C; True when interrupted. Other bytes wait as type-ahead."""
+        deadline = time.monotonic() + seconds
+        while not self._closing.is_set():
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return False
+            data = self._wait_input(remaining)
+            if data:
+                if CTRL_C in data:
+                    self._inbox += data[data.index(CTRL_C) + 1 :]
+                    return True
+                self._inbox += data
+            if self._master is None:
+                return False
+        return False
+
+    # ---------------------------------------------------------------- server
+
+    def _serve(self) -> None:
+        while not self._closing.is_set():
+            if self._unplug_requested.is_set():
+                self._unplug_requested.clear()
+                self._do_unplug(None)
+            if self._replug_requested.is_set() or (
+                self._replug_at is not None and time.monotonic() >= self._replug_at
+            ):
+                self._replug_requested.clear()
+                self._do_replug()
+            timeout = (
+                0.2 if self._replug_at is None else max(0.0, min(0.2, self._replug_at - time.monotonic()))
+            )
+            data = self._wait_input(timeout)
+            if data:
+                self._inbox += data
+            while self._inbox and self._master is not None and not self._closing.is_set():
+                byte = self._inbox.pop(0)
+                self._on_byte(byte)
+
+    def _on_byte(self, byte: int) -> None:
+        echo = self.settings.echo
+        if byte == CTRL_C:
+            self._line.clear()
+            self.arm.stop()
+            self._write("^C\r\n" + self.shell.prompt)
+            return
+        if byte == CTRL_E:
+            return
+        if byte in (0x0D, 0x0A):
+            if byte == 0x0A and self._last_was_cr:
+                self._last_was_cr = False
+                return
+            self._last_was_cr = byte == 0x0D
+            if echo:
+                self._write("\r\n")
+            line = self._line.decode("latin-1")
+            self._line.clear()
+            self._on_line(line)
+            return
+        self._last_was_cr = False
+        if byte in (0x08, 0x7F):
+            if self._line:
+                self._line.pop()
+                if echo:
+                    self._write("\b \b")
+            return
+        if 0x20 <= byte < 0x7F:
+            self._line.append(byte)
+            if echo:
+                self._write(chr(byte))
+
+    def _take_fault(self, n: int) -> Fault | None:
+        with self._lock:
+            for i, (at, fault) in enumerate(self._faults):
+                if at == n:
+                    del self._faults[i]
+                    return fault
+        return None
+
+    def _on_line(self, line: str) -> None:
+        prompt = self.shell.prompt
+        if not line.strip():
+            self._write(prompt)
+            return
+        with self._lock:
+            self._commands_seen += 1
+            n = self._commands_seen
+            self.received.append(line)
+        fault = self._take_fault(n)
+        log.debug("twin <- %r (command %d%s)", line, n, f", fault {fault.kind.value}" if fault else "")
+        if fault is not None and fault.kind is FaultKind.DISCONNECT:
+            self._do_unplug(fault.replug_after_s)
+            return
+        if fault is not None and fault.kind is FaultKind.ERROR:
+            outcome = Outcome(lines=fault.text.split("\n"))
+        elif fault is not None and not fault.execute:
+            outcome = Outcome()
+        else:
+            if self.shell.is_motion(line) and self.arm.moving() and self._sleep(self.arm.remaining_s()):
+                self.arm.stop()  # Ctrl-C while waiting for the previous motion
+                self._write("^C\r\n" + prompt)
+                return
+            outcome = self.shell.execute(line)
+        lines = outcome.lines
+        if fault is not None and fault.kind is FaultKind.GARBLE:
+            lines = garble(lines)
+        if fault is not None and fault.kind is FaultKind.SLOW and self._sleep(fault.delay_s):
+            self.arm.stop()
+            lines = [*lines, "^C"]
+        if fault is not None and fault.kind is FaultKind.DROP:
+            return
+        for text in lines:
+            self._write(text + "\r\n")
+        blocks = outcome.is_motion and self.settings.motion_blocks and outcome.motion_s > 0
+        if blocks and self._sleep(outcome.motion_s):
+            self.arm.stop()
+            self._write("^C\r\n")
+        self._write(prompt)
+
+
+def start_twin(**options: Any) -> ControllerTwin:
+    """Start a twin with :class:`TwinSettings` ``options``; ``port`` is the path to open. Close it after."""
+    return ControllerTwin(**options).start()
+
+
+__all__ = [
+    "ControllerTwin",
+    "Fault",
+    "FaultKind",
+    "MotionRecord",
+    "TwinSettings",
+    "parse_fault",
+    "start_twin",
+]
