@@ -1,0 +1,240 @@
+"""The serial link to a C500C: settings, and a thin line transport over pyserial.
+
+The transport accepts a port name, a pyserial URL (``loop://``, ``socket://host:port``, a pty path)
+or an already built ``serial.SerialBase`` (tests inject fakes that way). It writes and reads text
+lines, logs every line sent and received at debug level, waits for the prompt with a deadline, and
+turns pyserial and OS failures into the station's device errors. It knows nothing of commands.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable
+from typing import Literal
+
+import serial
+from pydantic import BaseModel, ConfigDict, Field
+
+from station.devices import DeviceConnectionError, DeviceTimeoutError
+
+log = logging.getLogger(__name__)
+
+try:  # pyserial's POSIX flush() raises termios.error, which is not an OSError
+    from termios import error as _TermiosError  # noqa: N812
+except ImportError:  # pragma: no cover - Windows
+    _TermiosError = OSError  # type: ignore[assignment,misc]
+
+LINK_ERRORS: tuple[type[Exception], ...] = (serial.SerialException, OSError, _TermiosError)
+"""What pyserial and the OS raise when the line goes away."""
+
+
+class LinkSettings(BaseModel):
+    """Serial parameters, framing and timeouts of the link (defaults: the C500C front console port).
+
+    57600 8N1 without flow control, output lines ending CR LF and echo on are seen in the firmware's
+    sources [C]; that the host should end commands with CR is an assumption [A] (both C500 drivers do).
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    baudrate: int = Field(57600, gt=0)
+    bytesize: Literal[5, 6, 7, 8] = 8
+    parity: Literal["N", "E", "O", "M", "S"] = "N"
+    stopbits: float = Field(1, description="1, 1.5 or 2")
+    xonxoff: bool = False
+    rtscts: bool = False
+    line_ending: str = Field("\r", min_length=1, description="what the host ends each command with")
+    echo: bool = Field(True, description="the controller echoes what is typed")
+    encoding: str = "ascii"
+    reply_timeout_s: float = Field(3.0, gt=0, description="wait for the prompt after a query")
+    motion_timeout_s: float = Field(120.0, gt=0, description="wait for the prompt after a motion command")
+    home_timeout_s: float = Field(300.0, gt=0, description="wait for the prompt after home")
+    poll_s: float = Field(0.02, gt=0, description="read granularity; also the port's read timeout")
+    resync_quiet_s: float = Field(0.05, ge=0, description="silence that ends a drain of stale input")
+
+
+class SerialTransport:
+    """Lines over pyserial: ``write_line``, ``read_until_prompt``, ``drain``; nothing about commands."""
+
+    def __init__(
+        self,
+        port: str | serial.SerialBase,
+        settings: LinkSettings | None = None,
+        *,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.settings = settings or LinkSettings()
+        self._clock = clock
+        self._injected = isinstance(port, serial.SerialBase)
+        self._port_arg = port
+        self._serial: serial.SerialBase | None = port if isinstance(port, serial.SerialBase) else None
+        self.name = port if isinstance(port, str) else (getattr(port, "port", None) or type(port).__name__)
+        self._pending = bytearray()  # read past a prompt: the start of the next answer
+
+    # ---------------------------------------------------------------- open / close
+
+    @property
+    def is_open(self) -> bool:
+        return self._serial is not None and bool(self._serial.is_open)
+
+    def open(self) -> None:
+        """Open the port (a name or URL is opened with ``serial_for_url``)."""
+        if self.is_open:
+            return
+        s = self.settings
+        try:
+            if self._injected:
+                assert self._serial is not None
+                self._serial.timeout = s.poll_s
+                self._serial.write_timeout = s.reply_timeout_s
+                if not self._serial.is_open:
+                    self._serial.open()
+            else:
+                assert isinstance(self._port_arg, str)
+                port = serial.serial_for_url(
+                    self._port_arg,
+                    do_not_open=True,
+                    baudrate=s.baudrate,
+                    bytesize=s.bytesize,
+                    parity=s.parity,
+                    stopbits=s.stopbits,
+                    xonxoff=s.xonxoff,
+                    rtscts=s.rtscts,
+                    timeout=s.poll_s,
+                    write_timeout=s.reply_timeout_s,
+                )
+                port.open()
+                self._serial = port
+        except (serial.SerialException, OSError, _TermiosError, ValueError) as exc:
+            self._serial = None if not self._injected else self._serial
+            raise DeviceConnectionError(
+                f"cannot open {self.name!r}: {exc}; check the port name and that no other program holds it"
+            ) from exc
+        log.debug("opened %s (%s %d%s%s)", self.name, s.baudrate, s.bytesize, s.parity, s.stopbits)
+
+    def close(self) -> None:
+        """Close the port; safe to call twice."""
+        self._pending.clear()
+        if self._serial is None:
+            return
+        try:
+            self._serial.close()
+        except LINK_ERRORS as exc:
+            log.debug("closing %s: %s", self.name, exc)
+        if not self._injected:
+            self._serial = None
+        log.debug("closed %s", self.name)
+
+    def _port(self) -> serial.SerialBase:
+        if not self.is_open:
+            raise DeviceConnectionError(f"{self.name!r} is not open: connect() first")
+        assert self._serial is not None
+        return self._serial
+
+    def _lost(self, exc: Exception) -> DeviceConnectionError:
+        self.close()
+        return DeviceConnectionError(
+            f"lost the link to {self.name!r} ({exc}); check the cable and the controller,"
+            " then connect() again"
+        )
+
+    # ---------------------------------------------------------------- I/O
+
+    def write_bytes(self, data: bytes) -> None:
+        """Write raw bytes (control characters such as the stop byte)."""
+        port = self._port()
+        log.debug("-> %r", data)
+        try:
+            port.write(data)
+            port.flush()
+        except LINK_ERRORS as exc:
+            raise self._lost(exc) from exc
+
+    def write_line(self, text: str) -> None:
+        """Write one command line, ended with the configured line ending."""
+        log.debug("-> %r", text)
+        port = self._port()
+        try:
+            port.write((text + self.settings.line_ending).encode(self.settings.encoding))
+            port.flush()
+        except LINK_ERRORS as exc:
+            raise self._lost(exc) from exc
+
+    def _read_some(self) -> bytes:
+        port = self._port()
+        try:
+            waiting = port.in_waiting
+            data: bytes = port.read(max(1, waiting))
+        except LINK_ERRORS as exc:
+            raise self._lost(exc) from exc
+        return data
+
+    def read_until_prompt(self, prompt: str, timeout_s: float, *, what: str = "") -> list[str]:
+        """Read up to the first ``prompt`` at the start of a line; return the lines before it.
+
+        Lines are split on CR LF (a bare CR or LF is accepted too) and logged one by one. Bytes read
+        past the prompt are kept for the next call. Raises DeviceTimeoutError when no prompt has come
+        after ``timeout_s``.
+        """
+        deadline = self._clock() + timeout_s
+        raw, self._pending = self._pending, bytearray()
+        prompt_bytes = prompt.encode(self.settings.encoding)
+        while True:
+            end = _find_prompt(raw, prompt_bytes)
+            if end is not None:
+                before = raw[: end - len(prompt_bytes)]
+                self._pending = raw[end:]
+                lines = _split_lines(before.decode(self.settings.encoding, errors="replace"))
+                for line in lines:
+                    log.debug("<- %r", line)
+                log.debug("<- prompt %r", prompt)
+                return lines
+            if self._clock() >= deadline:
+                got = raw.decode(self.settings.encoding, errors="replace")
+                for line in _split_lines(got):
+                    log.debug("<- %r (before timeout)", line)
+                raise DeviceTimeoutError(
+                    f"no prompt {prompt!r} from {self.name!r} within {timeout_s:g} s"
+                    + (f" after {what!r}" if what else "")
+                    + (f" (received {got[-120:]!r})" if got else " (received nothing)")
+                    + f"; check the cable, {self.settings.baudrate} baud, and that the controller shows"
+                    f" the {prompt!r} prompt"
+                )
+            raw += self._read_some()
+
+    def drain(self) -> str:
+        """Discard pending input until the line has been quiet for ``resync_quiet_s``; return it."""
+        got, self._pending = self._pending, bytearray()
+        quiet_until = self._clock() + self.settings.resync_quiet_s
+        while self._clock() < quiet_until:
+            chunk = self._read_some()  # blocks at most poll_s
+            if chunk:
+                got += chunk
+                quiet_until = self._clock() + self.settings.resync_quiet_s
+        text = got.decode(self.settings.encoding, errors="replace")
+        if text:
+            log.debug("<- discarded %r", text)
+        return text
+
+
+def _find_prompt(raw: bytearray, prompt: bytes) -> int | None:
+    """End index of the first ``prompt`` that starts a line in ``raw``, or None."""
+    start = 0
+    while (i := raw.find(prompt, start)) >= 0:
+        if i == 0 or raw[i - 1] in b"\r\n":
+            return i + len(prompt)
+        start = i + 1
+    return None
+
+
+def _split_lines(text: str) -> list[str]:
+    """Split on CR LF, CR or LF; keep empty lines between line ends but drop the trailing empty one."""
+    normalised = text.replace("\r\n", "\n").replace("\r", "\n")
+    lines = normalised.split("\n")
+    if lines and lines[-1] == "":
+        lines.pop()
+    return lines
+
+
+__all__ = ["LinkSettings", "SerialTransport"]
