@@ -43,6 +43,7 @@ def apply_threshold(response: Float32Image, fraction: float) -> Float32Image:
     peak = float(response.max())
     if peak <= 0.0:
         return np.zeros_like(response)
-    out = response.copy()
-    out[out < fraction * peak] = 0.0
-    return out
+    # THRESH_TOZERO keeps values strictly above the threshold: step just below it to keep equality
+    level = float(np.nextafter(np.float32(fraction * peak), np.float32(-np.inf)))
+    _, out = cv2.threshold(response, level, 0.0, cv2.THRESH_TOZERO)
+    return np.asarray(out, np.float32)

@@ -60,7 +60,10 @@ def testbox_scan(
     """
     accept = acceptance_mask(response, testheight=testheight, testwidth=testwidth)
     w = response.shape[1]
-    cols, rows = np.nonzero(accept.T)  # sorted by column, then row
+    found = cv2.findNonZero(accept.view(np.uint8))  # (x, y) sorted by row; fast on sparse masks
+    xy = np.zeros((0, 2), np.intp) if found is None else found.reshape(-1, 2).astype(np.intp)
+    order = np.argsort(xy[:, 0], kind="stable")  # by column, rows still ascending within each
+    cols, rows = xy[order, 0], xy[order, 1]
     bounds = np.searchsorted(cols, np.arange(w + 1)).tolist()
     row_list = rows.tolist()
     found_cols: list[int] = []
