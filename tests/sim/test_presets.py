@@ -1,0 +1,54 @@
+"""Noise presets are fixed: benchmarks quote them by name and version."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import pytest
+
+from sim.presets import PRESETS, NoisePreset, get_preset
+
+
+def test_presets_are_nominal_and_hard_at_version_1() -> None:
+    assert sorted(PRESETS) == ["hard", "nominal"]
+    assert {p.name: p.version for p in PRESETS.values()} == {"nominal": 1, "hard": 1}
+
+
+@pytest.mark.parametrize(
+    ("name", "blur", "read", "salt_pepper", "land", "paint"),
+    [("nominal", 1.0, 0.8, 0.0, 205.0, 40.0), ("hard", 1.8, 3.0, 0.004, 195.0, 50.0)],
+)
+def test_key_values_are_pinned(
+    name: str, blur: float, read: float, salt_pepper: float, land: float, paint: float
+) -> None:
+    # Changing any of these changes every benchmark: bump the preset's version and update this test.
+    p = get_preset(name)
+    assert (p.blur_sigma_px, p.read_noise_dn, p.salt_pepper_fraction) == (blur, read, salt_pepper)
+    assert (p.land_level_dn, p.paint_level_dn) == (land, paint)
+
+
+def test_nominal_has_the_seed_snr_and_hard_is_harder() -> None:
+    nominal, hard = PRESETS["nominal"], PRESETS["hard"]
+    assert 49.0 < nominal.snr_db() < 50.5  # the Pulnix TM-200's 50 dB, peak signal to rms noise
+    assert hard.snr_db() < nominal.snr_db() - 10
+    assert nominal.glints_per_mm < hard.glints_per_mm
+    assert nominal.vignetting < hard.vignetting
+    assert hard.scratches_per_mm2 > 0
+    assert hard.texture_rms_dn > nominal.texture_rms_dn
+    assert nominal.contrast_dn == 165.0
+
+
+def test_unknown_preset_names_the_choices() -> None:
+    with pytest.raises(ValueError, match=r"'foggy'.*nominal, hard"):
+        get_preset("foggy")
+
+
+def test_round_trip_and_validation() -> None:
+    p = PRESETS["hard"]
+    assert NoisePreset.from_dict(p.to_dict()) == p
+    with pytest.raises(ValueError, match="unknown keys"):
+        NoisePreset.from_dict({**p.to_dict(), "gamma": 1.0})
+    with pytest.raises(ValueError, match="read_noise_dn"):
+        replace(p, read_noise_dn=-1.0)
+    with pytest.raises(ValueError, match="paint < land"):
+        replace(p, paint_level_dn=250.0)
