@@ -166,7 +166,7 @@ NOMINAL = NoisePreset(
 
 HARD = NoisePreset(
     name="hard",
-    version=1,
+    version=2,  # v2: scratches 40 -> 80 DN deep (v1's were lost in the blur)
     blur_sigma_px=1.8,
     land_level_dn=195.0,
     paint_level_dn=50.0,
@@ -180,7 +180,7 @@ HARD = NoisePreset(
     glint_peak_max_dn=220.0,
     glint_wall_margin_mm=0.0,
     scratches_per_mm2=0.3,
-    scratch_depth_dn=40.0,
+    scratch_depth_dn=80.0,
     scratch_width_max_mm=0.015,
     scratch_length_max_mm=3.0,
     texture_rms_dn=6.0,

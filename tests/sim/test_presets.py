@@ -9,9 +9,9 @@ import pytest
 from sim.presets import PRESETS, NoisePreset, get_preset
 
 
-def test_presets_are_nominal_and_hard_at_version_1() -> None:
+def test_presets_are_nominal_v1_and_hard_v2() -> None:
     assert sorted(PRESETS) == ["hard", "nominal"]
-    assert {p.name: p.version for p in PRESETS.values()} == {"nominal": 1, "hard": 1}
+    assert {p.name: p.version for p in PRESETS.values()} == {"nominal": 1, "hard": 2}
 
 
 @pytest.mark.parametrize(
