@@ -1,0 +1,116 @@
+"""The simulated operator: answers the station's table prompts by turning the simulated micrometers.
+
+It watches a ``station.prompts.PromptBroker`` from its own thread. A prompt that asks for micrometer
+readings (fields in inches, ``x_in`` / ``y_in``) is answered after ``delay_s``: the operator turns the
+micrometers of the simulated world to the readings asked for (the world's table then moves, with its
+backlash and resolution) and confirms with the reading it was asked for, as a person reading the
+thimble would. Other prompts are left for someone else. ``cancel_next`` makes it decline once (tests).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable
+
+from sim.world import INCH_MM, World
+from station.prompts import Prompt, PromptBroker, PromptError
+
+log = logging.getLogger(__name__)
+
+X_FIELD = "x_in"
+Y_FIELD = "y_in"
+
+
+class SimOperator:
+    """Answers micrometer prompts on ``broker`` by moving ``world``'s table.
+
+    Parameters
+    ----------
+    origin_in
+        Micrometer readings (in) at the world's table position (0, 0) mm.
+    delay_s
+        How long the operator takes to turn the micrometers.
+    """
+
+    def __init__(
+        self,
+        broker: PromptBroker,
+        world: World,
+        *,
+        origin_in: tuple[float, float] = (0.0, 0.0),
+        delay_s: float = 0.0,
+        sleep: Callable[[float], None] = time.sleep,
+    ) -> None:
+        self._broker = broker
+        self._world = world
+        self._origin_in = origin_in
+        self._delay_s = delay_s
+        self._sleep = sleep
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._cancel_next = False
+        self.answered = 0
+
+    def cancel_next(self) -> None:
+        """Decline the next micrometer prompt (as an operator who cannot reach the table would)."""
+        self._cancel_next = True
+
+    def start(self) -> SimOperator:
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._run, name="sim-operator", daemon=True)
+            self._thread.start()
+        return self
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+            self._thread = None
+
+    def __enter__(self) -> SimOperator:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _run(self) -> None:
+        handled: set[str] = set()
+        while not self._stop.is_set():
+            prompt = self._broker.wait_for_prompt(timeout=0.05)
+            if prompt is None or prompt.id in handled:
+                if prompt is not None:
+                    self._stop.wait(0.01)
+                continue
+            handled.add(prompt.id)
+            names = {f.name for f in prompt.fields}
+            if not {X_FIELD, Y_FIELD} <= names:
+                log.debug("sim operator leaves prompt %s (%s) to someone else", prompt.id, prompt.kind)
+                continue
+            self._answer(prompt)
+
+    def _answer(self, prompt: Prompt) -> None:
+        if self._delay_s:
+            self._sleep(self._delay_s)
+        try:
+            if self._cancel_next:
+                self._cancel_next = False
+                self._broker.cancel(prompt.id, reason="simulated operator declined", by="sim-operator")
+                return
+            asked = {f.name: f.requested for f in prompt.fields}
+            x_in, y_in = float(asked[X_FIELD] or 0.0), float(asked[Y_FIELD] or 0.0)
+            self._world.set_table_readings(
+                (x_in - self._origin_in[0]) * INCH_MM, (y_in - self._origin_in[1]) * INCH_MM
+            )
+            self._broker.confirm(prompt.id, {X_FIELD: x_in, Y_FIELD: y_in}, by="sim-operator")
+            self.answered += 1
+        except PromptError as exc:  # the prompt was withdrawn meanwhile: nothing to answer
+            log.info("sim operator: prompt %s closed before the answer: %s", prompt.id, exc)
+
+
+def start_sim_operator(
+    *, broker: PromptBroker, world: World | None = None, delay_s: float = 0.0
+) -> SimOperator:
+    """Device factory (``operator.sim``): a simulated operator answering ``broker``'s table prompts."""
+    return SimOperator(broker, world or World(), delay_s=delay_s).start()

@@ -1,0 +1,226 @@
+"""One simulated station: the arm, the camera on its flange, the X-Y table and the artifact on it.
+
+Frames (all mm, right-handed):
+
+* **base** ``B``: the arm's base frame (``station.kinematics``), z up; the table top is horizontal.
+* **camera** ``C``: on the flange through the tool transform; OpenCV's camera axes: x right, y down in the
+  image, z forward along the optical axis. At the reference pose the camera looks straight down.
+* **table** ``T``: the X-Y table's carriage; its X and Y axes lie in the table plane, turned by
+  ``table_rotation_deg`` about base z from the camera's image axes at the reference pose, and its Y axis
+  leans ``table_skew_deg`` toward X (the seed found its axes not perpendicular). A commanded table
+  position (x, y) moves the carriage by ``x * X_axis + y * Y_axis`` (signs: +x along the table's +X).
+* **artifact** ``A``: origin at the groove crossing, u along the "horizontal" groove, v along the
+  "vertical" one, normal pointing down into the table (so that u x v = n), matching ``sim.artifact``.
+  At the reference pose and table position (0, 0), the artifact's u and v axes are the image's x and y
+  turned by ``artifact_rotation_deg`` and the crossing sits on the optical axis at the working distance.
+
+A joint move changes where the camera is (through the kinematics); a micrometer turn changes where the
+artifact is (through the table, with its imperfections: non-perpendicular axes, micrometer resolution,
+backlash). The camera renders what it sees with ``sim.artifact.render``; defocus grows the blur with
+the distance from the focal plane. The world's truth (flange pose, table position, artifact pose) is
+for tests and benchmarks, never for the station's orchestrator.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import numpy.typing as npt
+
+from sim.artifact import ArtifactSpec, CameraSpec, Pose, Truth, render
+from sim.presets import NoisePreset, get_preset
+from station.kinematics import Kinematics, rot_z, transform
+
+FloatArray = npt.NDArray[np.float64]
+INCH_MM = 25.4
+
+#: A reference pose of the arm with the camera looking straight down (flange z along -z of the base).
+REFERENCE_JOINTS_DEG: tuple[float, ...] = (0.0, 30.0, 60.0, 0.0, 90.0, 0.0)
+
+
+@dataclass(frozen=True)
+class TableImperfections:
+    """How the manual micrometer table differs from its readings (mm, deg)."""
+
+    skew_deg: float = 0.05
+    resolution_in: float = 0.0002
+    backlash_mm: float = 0.001
+
+    def __post_init__(self) -> None:
+        if self.resolution_in < 0 or self.backlash_mm < 0 or not math.isfinite(self.skew_deg):
+            raise ValueError("table resolution and backlash must be >= 0 and skew finite")
+
+
+@dataclass(frozen=True)
+class WorldSpec:
+    """Everything that fixes a simulated station (see the module docstring for frames and signs)."""
+
+    camera: CameraSpec = field(default_factory=CameraSpec)
+    artifact: ArtifactSpec = field(default_factory=ArtifactSpec)
+    preset: str = "nominal"
+    tool_length_mm: float = 120.0
+    reference_joints_deg: tuple[float, ...] = REFERENCE_JOINTS_DEG
+    table_rotation_deg: float = 0.3
+    artifact_rotation_deg: float = 2.0
+    table: TableImperfections = field(default_factory=TableImperfections)
+    defocus_px_per_mm: float = 20.0
+
+
+class TableAxis:
+    """One micrometer axis: the reading the operator sets, the carriage position it really gives.
+
+    The carriage follows the reading rounded to the micrometer's resolution, lagging by half the backlash
+    behind the last direction of travel.
+    """
+
+    def __init__(self, resolution_mm: float, backlash_mm: float) -> None:
+        self._resolution = resolution_mm
+        self._backlash = backlash_mm
+        self.reading_mm = 0.0
+        self.position_mm = 0.0
+        self._direction = 0.0
+
+    def set_reading(self, reading_mm: float) -> None:
+        if not math.isfinite(reading_mm):
+            raise ValueError(f"table reading must be finite, got {reading_mm!r}")
+        step = reading_mm - self.reading_mm
+        if step != 0.0:
+            self._direction = math.copysign(1.0, step)
+        self.reading_mm = reading_mm
+        settled = round(reading_mm / self._resolution) * self._resolution if self._resolution else reading_mm
+        self.position_mm = settled - self._direction * self._backlash / 2.0
+
+
+def euler_xyz(R: FloatArray) -> tuple[float, float, float]:
+    """Angles (deg) a, b, c with ``R = rot_x(a) @ rot_y(b) @ rot_z(c)`` (sim.artifact.Pose's order)."""
+    b = math.asin(max(-1.0, min(1.0, float(R[0, 2]))))
+    a = math.atan2(-float(R[1, 2]), float(R[2, 2]))
+    c = math.atan2(-float(R[0, 1]), float(R[0, 0]))
+    return math.degrees(a), math.degrees(b), math.degrees(c)
+
+
+class World:
+    """The simulated station's shared state. Thread-safe: the twins read and change it concurrently.
+
+    Parameters
+    ----------
+    spec
+        The station's geometry and optics.
+    joints
+        Where the arm really is, deg: a callable (e.g. a controller twin's attained joints); by default
+        the arm stays at the reference pose.
+    """
+
+    def __init__(
+        self, spec: WorldSpec | None = None, *, joints: Callable[[], Sequence[float]] | None = None
+    ) -> None:
+        self.spec = spec or WorldSpec()
+        self._lock = threading.Lock()
+        self._joints = joints or (lambda: self.spec.reference_joints_deg)
+        tool = transform(np.eye(3), (0.0, 0.0, self.spec.tool_length_mm))
+        self.kinematics = Kinematics(tool=tool)
+        res_mm = self.spec.table.resolution_in * INCH_MM
+        self._x = TableAxis(res_mm, self.spec.table.backlash_mm)
+        self._y = TableAxis(res_mm, self.spec.table.backlash_mm)
+        self._preset: NoisePreset = get_preset(self.spec.preset)
+        # Where the table and artifact sit: chosen so that at the reference pose and table (0, 0) the
+        # crossing is on the optical axis, in focus, turned by artifact_rotation_deg in the image.
+        cam0 = self.camera_pose_at(self.spec.reference_joints_deg)
+        focus = cam0[:3, :3] @ np.array([0.0, 0.0, self.spec.camera.working_distance_mm]) + cam0[:3, 3]
+        # camera z points down; artifact axes: u, v in the table plane, n = down
+        R_art = cam0[:3, :3] @ rot_z(math.radians(self.spec.artifact_rotation_deg))
+        self._artifact0 = transform(R_art, focus)
+        turn = rot_z(math.radians(self.spec.table_rotation_deg))
+        x_axis = cam0[:3, :3] @ turn @ np.array([1.0, 0.0, 0.0])
+        skew = math.radians(self.spec.table.skew_deg)
+        y_dir = turn @ np.array([math.sin(skew), math.cos(skew), 0.0])
+        y_axis = cam0[:3, :3] @ y_dir
+        self._table_axes = np.column_stack([x_axis, y_axis])  # base frame, 3x2
+
+    # ------------------------------------------------------------------ arm and camera
+
+    def joints_deg(self) -> FloatArray:
+        return np.asarray(self._joints(), dtype=np.float64)
+
+    def camera_pose_at(self, joints_deg: Sequence[float]) -> FloatArray:
+        """4x4 camera frame in the base frame for the given joints."""
+        return self.kinematics.forward(joints_deg, tool=True)
+
+    def camera_pose(self) -> FloatArray:
+        return self.camera_pose_at(tuple(self.joints_deg()))
+
+    # ------------------------------------------------------------------ table and artifact
+
+    def set_table_readings(self, x_mm: float, y_mm: float) -> None:
+        """What the operator does: turn the micrometers to these readings (mm)."""
+        with self._lock:
+            self._x.set_reading(x_mm)
+            self._y.set_reading(y_mm)
+
+    def table_readings_mm(self) -> tuple[float, float]:
+        with self._lock:
+            return self._x.reading_mm, self._y.reading_mm
+
+    def table_position_mm(self) -> tuple[float, float]:
+        """Where the carriage really is along its two axes (mm): truth, for tests."""
+        with self._lock:
+            return self._x.position_mm, self._y.position_mm
+
+    def artifact_pose(self) -> FloatArray:
+        """4x4 artifact frame in the base frame: truth, for tests."""
+        tx, ty = self.table_position_mm()
+        T = self._artifact0.copy()
+        T[:3, 3] += self._table_axes @ np.array([tx, ty])
+        return T
+
+    def artifact_in_camera(self) -> FloatArray:
+        """4x4 artifact frame in the camera frame."""
+        return np.linalg.inv(self.camera_pose()) @ self.artifact_pose()
+
+    def pose(self) -> Pose:
+        """The artifact's pose as the renderer takes it."""
+        T = self.artifact_in_camera()
+        a, b, c = euler_xyz(T[:3, :3])
+        wd = self.spec.camera.working_distance_mm
+        return Pose(
+            float(T[0, 3]),
+            float(T[1, 3]),
+            rotation_deg=c,
+            tilt_x_deg=a,
+            tilt_y_deg=b,
+            z_mm=float(T[2, 3]) - wd,
+        )
+
+    # ------------------------------------------------------------------ imaging
+
+    def preset_for(self, pose: Pose, *, exposure: float = 1.0) -> NoisePreset:
+        """The noise preset with defocus blur for this pose and the signal scaled by ``exposure``."""
+        p = self._preset
+        blur = math.hypot(p.blur_sigma_px, self.spec.defocus_px_per_mm * pose.z_mm)
+        return replace(
+            p,
+            blur_sigma_px=blur,
+            land_level_dn=min(p.land_level_dn * exposure, 255.0),
+            paint_level_dn=min(p.paint_level_dn * exposure, 254.0),
+        )
+
+    def render(
+        self, rng: np.random.Generator, *, exposure: float = 1.0
+    ) -> tuple[npt.NDArray[np.uint8], Truth]:
+        """What the camera sees now, with the truth of that frame."""
+        pose = self.pose()
+        return render(
+            pose,
+            preset=self.preset_for(pose, exposure=exposure),
+            artifact=self.spec.artifact,
+            camera=self.spec.camera,
+            rng=rng,
+        )
+
+    def image_shift_px_per_mm(self) -> float:
+        """Image scale at the focal plane (px per mm of artifact motion)."""
+        return self.spec.camera.px_per_mm
