@@ -249,6 +249,7 @@ def scratch_image(
     lo = np.minimum(starts, stops) - reach[:, None]
     hi = np.maximum(starts, stops) + reach[:, None]
     visible = (hi[:, 0] >= 0) & (hi[:, 1] >= 0) & (lo[:, 0] <= shape[1] - 1) & (lo[:, 1] <= shape[0] - 1)
+    taper_sigma = max(sigma, 1.0)
     for k in np.flatnonzero(visible):
         axis = stops[k] - starts[k]
         length_px = float(np.hypot(*axis))
@@ -256,25 +257,48 @@ def scratch_image(
             continue
         axis /= length_px
         normal = np.array([-axis[1], axis[0]])
-        win = _window(0.5 * (starts[k] + stops[k]), 0.5 * length_px + reach[k], shape)
-        if win is None:
+        band_px = _segment_band(starts[k], axis, length_px, float(reach[k]), shape)
+        if band_px is None:
             continue
-        ys = np.arange(win[0].start, win[0].stop, dtype=np.float64)[:, None] - starts[k][1]
-        xs = np.arange(win[1].start, win[1].stop, dtype=np.float64)[None, :] - starts[k][0]
-        across = xs * normal[0] + ys * normal[1]
-        near = np.abs(across) < reach[k]
-        if not near.any():
-            continue
-        along = (xs * axis[0] + ys * axis[1])[near]
+        rows, cols = band_px
+        rel_x, rel_y = cols - starts[k][0], rows - starts[k][1]
+        across = rel_x * normal[0] + rel_y * normal[1]
+        along = rel_x * axis[0] + rel_y * axis[1]
         ca, sa = abs(normal[0]), abs(normal[1])
-        band = box_step(across[near] + half_w[k], ca, sa, sigma) - box_step(
-            across[near] - half_w[k], ca, sa, sigma
-        )
-        taper_sigma = max(sigma, 1.0)
+        profile = box_step(across + half_w[k], ca, sa, sigma) - box_step(across - half_w[k], ca, sa, sigma)
         taper = ndtr(along / taper_sigma) * ndtr((length_px - along) / taper_sigma)
-        sub = out[win]
-        sub[near] += (depth[k] * band * taper).astype(np.float32)
+        out[rows, cols] += (depth[k] * profile * taper).astype(np.float32)
     return out
+
+
+def _segment_band(
+    start: FloatArray, axis: FloatArray, length_px: float, reach: float, shape: tuple[int, int]
+) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]] | None:
+    """Pixels (rows, cols) within ``reach`` px of the segment's line and of its span, or None.
+
+    Scans columns for a segment closer to horizontal (rows for one closer to vertical), taking the
+    few pixels per scan line that can be within reach, so the cost follows the segment, not its box.
+    """
+    steep = abs(axis[1]) > abs(axis[0])
+    k_along, k_across = (1, 0) if steep else (0, 1)  # coordinate scanned, coordinate across
+    n_along, n_across = (shape[0], shape[1]) if steep else (shape[1], shape[0])
+    ends = (start[k_along], start[k_along] + length_px * axis[k_along])
+    lo = max(int(np.floor(min(ends) - reach)), 0)
+    hi = min(int(np.ceil(max(ends) + reach)) + 1, n_along)
+    if lo >= hi:
+        return None
+    scan = np.arange(lo, hi)
+    slope = axis[k_across] / axis[k_along]
+    centre = start[k_across] + (scan - start[k_along]) * slope
+    half = reach / abs(axis[k_along])
+    first = np.floor(centre - half).astype(np.intp)
+    across = first[None, :] + np.arange(int(np.ceil(2 * half)) + 2)[:, None]
+    along = np.broadcast_to(scan, across.shape)
+    inside = (across >= 0) & (across < n_across)
+    if not inside.any():
+        return None
+    a_idx, s_idx = across[inside], along[inside]
+    return (s_idx, a_idx) if steep else (a_idx, s_idx)
 
 
 # --------------------------------------------------------------------------- vignetting

@@ -19,7 +19,7 @@ from scipy.special import chndtr, ndtr
 FloatArray = npt.NDArray[np.float64]
 Float32Array = npt.NDArray[np.float32]
 
-__all__ = ["box_step", "land_fraction", "line_distance"]
+__all__ = ["box_step", "cutoff_px", "edge_coverage", "land_fraction", "line_distance"]
 
 _SMALL_WIDTH = 1e-5
 """Below this narrower trapezoid width the limit form is used (error < 1e-11, see ``box_step``)."""
@@ -119,20 +119,44 @@ def _rectangle(s: FloatArray, a: FloatArray, sigma_px: float) -> FloatArray:
     return np.asarray((np.maximum(s + a / 2.0, 0.0) - np.maximum(s - a / 2.0, 0.0)) / a)
 
 
-def line_distance(line: npt.ArrayLike, shape: tuple[int, int]) -> FloatArray:
-    """Signed distance ``a x + b y - c`` of every pixel centre to a normalised line, px, shape ``shape``."""
+def line_distance(
+    line: npt.ArrayLike, shape: tuple[int, int], box: tuple[slice, slice] | None = None
+) -> FloatArray:
+    """Signed distance ``a x + b y - c`` of pixel centres to a normalised line, px.
+
+    Over the whole image of shape ``shape``, or over the sub-image ``box`` (row slice, column slice).
+    """
     a, b, c = (float(v) for v in np.asarray(line, dtype=np.float64))
-    xs = np.arange(shape[1], dtype=np.float64)
-    ys = np.arange(shape[0], dtype=np.float64)
+    rows, cols = box if box is not None else (slice(0, shape[0]), slice(0, shape[1]))
+    xs = np.arange(cols.start, cols.stop, dtype=np.float64)
+    ys = np.arange(rows.start, rows.stop, dtype=np.float64)
     return np.asarray(a * xs[None, :] + (b * ys[:, None] - c))
 
 
-def _edge_coverage(d: FloatArray, line: FloatArray, sigma_px: float) -> FloatArray:
-    """``box_step`` over a whole image, evaluated only where the pixel straddles the blurred edge."""
-    out = (d > 0.0).astype(np.float64)
-    near = np.abs(d) < cutoff_px(sigma_px)
-    out[near] = box_step(d[near], abs(line[0]), abs(line[1]), sigma_px)
-    return out
+def edge_coverage(line: npt.ArrayLike, shape: tuple[int, int], sigma_px: float) -> FloatArray:
+    """``box_step`` of one straight edge over a whole image, shape ``shape``.
+
+    Pixels farther than ``cutoff_px`` from the line are 0 or 1 by side; ``box_step`` is evaluated
+    only in the band along the line (a few rows per column, or columns per row).
+    """
+    a, b, c = (float(v) for v in np.asarray(line, dtype=np.float64))
+    height, width = shape
+    steep = abs(a) > abs(b)  # near-vertical: scan rows instead of columns
+    n_across, n_along = (width, height) if steep else (height, width)
+    p, q = (b, a) if steep else (a, b)  # d = p * along + q * across - c
+    along = np.arange(n_along, dtype=np.float64)
+    across = np.arange(n_across, dtype=np.float64)
+    crossing = (c - p * along) / q  # where d = 0, per scan line
+    compare = np.greater if q > 0 else np.less
+    out = compare.outer(across, crossing).astype(np.float64)  # (n_across, n_along): d > 0
+    half = cutoff_px(sigma_px) / abs(q)
+    first = np.floor(crossing - half).astype(np.intp)
+    idx_across = first[None, :] + np.arange(int(np.ceil(2 * half)) + 2)[:, None]
+    idx_along = np.broadcast_to(np.arange(n_along), idx_across.shape)
+    inside = (idx_across >= 0) & (idx_across < n_across)
+    ia, il = idx_across[inside], idx_along[inside]
+    out[ia, il] = box_step(p * il + q * ia - c, abs(a), abs(b), sigma_px)
+    return np.asarray(out.T if steep else out)
 
 
 # (line index, side) of the two boundary lines of each land: lines are top, bottom, left, right with
@@ -189,8 +213,7 @@ def land_fraction(
     area removed close to the notch's ``r^2 (1 - pi/4)``.
     """
     lines_arr = np.asarray(lines, dtype=np.float64).reshape(4, 3)
-    dist = [line_distance(line, shape) for line in lines_arr]
-    cover = [_edge_coverage(d, line, sigma_px) for d, line in zip(dist, lines_arr, strict=True)]
+    cover = [edge_coverage(line, shape, sigma_px) for line in lines_arr]
     # Sum of the four sharp lands = (1 - horizontal band)(1 - vertical band).
     total = (1.0 - cover[0] + cover[1]) * (1.0 - cover[2] + cover[3])
     cut = cutoff_px(sigma_px)
@@ -199,7 +222,7 @@ def land_fraction(
         box = _zone_box(lines_arr[i] * si, lines_arr[j] * sj, -cut, r + cut, shape) if r > 0.0 else None
         if box is None:
             continue
-        d1, d2 = si * dist[i][box], sj * dist[j][box]
+        d1, d2 = si * line_distance(lines_arr[i], shape, box), sj * line_distance(lines_arr[j], shape, box)
         zone = (d1 > -cut) & (d2 > -cut) & (d1 < r + cut) & (d2 < r + cut)
         s1 = cover[i][box][zone] if si > 0 else 1.0 - cover[i][box][zone]
         s2 = cover[j][box][zone] if sj > 0 else 1.0 - cover[j][box][zone]
