@@ -42,7 +42,7 @@ def _phi2(x: FloatArray) -> FloatArray:
 
 
 def cutoff_px(sigma_px: float) -> float:
-    """Distance from an edge beyond which a pixel is fully on one side to double precision, px."""
+    """Distance from an edge beyond which a pixel is on one side to within 1e-13, px."""
     return 7.5 * sigma_px + 1.0
 
 
