@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-import argparse
 import importlib
 import logging
+
+from station.commands import SubParsers
 
 log = logging.getLogger(__name__)
 
@@ -12,7 +13,7 @@ log = logging.getLogger(__name__)
 SIM_COMMAND_MODULES = ("sim.imageset_cli", "sim.controller_cli")
 
 
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def register(sub: SubParsers) -> None:
     parser = sub.add_parser("sim", help="simulated station: render artifact images and sets, run twins")
     sim_sub = parser.add_subparsers(dest="sim_command", required=True, metavar="SIM_COMMAND")
     for name in SIM_COMMAND_MODULES:
