@@ -14,9 +14,9 @@ Register = Callable[[SubParsers], None]
 
 
 def _core() -> list[Register]:
-    from station.commands import measure, sweep, validate
+    from station.commands import measure, sweep, table, validate
 
-    return [measure.register, validate.register, sweep.register]
+    return [measure.register, validate.register, sweep.register, table.register]
 
 
 CORE_COMMANDS: list[Register] = _core()

@@ -1,0 +1,70 @@
+"""``station table (--sim | --manual) move X_MM Y_MM``: move the X-Y table through an operator prompt."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import threading
+
+from station import config
+from station.commands import SubParsers
+from station.devices import DeviceError
+from station.prompts import PromptBroker, PromptEvent
+
+
+def register(sub: SubParsers) -> None:
+    p = sub.add_parser(
+        "table",
+        help="move the X-Y table (the operator turns the micrometers when prompted)",
+        description="Move the manual micrometer X-Y table to X_MM, Y_MM (table axes, mm). The move "
+        "becomes a prompt ('set X to 0.0100 in, Y to 0.0000 in, then confirm') answered by the "
+        "simulated operator (--sim) or at this terminal (--manual).",
+    )
+    who = p.add_mutually_exclusive_group(required=True)
+    who.add_argument("--sim", action="store_true", help="a simulated table and operator")
+    who.add_argument("--manual", action="store_true", help="the real table; answer the prompt here")
+    p.add_argument("--timeout", type=float, default=None, help="give up after this many seconds")
+    p.add_argument("--json", action="store_true", help="print the confirmed position as JSON")
+    tsub = p.add_subparsers(dest="table_command", required=True, metavar="COMMAND")
+    move = tsub.add_parser("move", help="move to X_MM Y_MM")
+    move.add_argument("x_mm", type=float, metavar="X_MM")
+    move.add_argument("y_mm", type=float, metavar="Y_MM")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    broker = PromptBroker()
+
+    def show(event: PromptEvent) -> None:
+        if event.kind == "opened":
+            print(f"station table: {event.prompt.message}", file=sys.stderr)
+        elif event.answer is not None:
+            by = f" by {event.answer.by}" if event.answer.by else ""
+            print(f"station table: {event.answer.outcome.value}{by}", file=sys.stderr)
+
+    stop = threading.Event()
+    helper: threading.Thread | None = None
+    operator = None
+    try:
+        if args.sim:
+            operator = config.build("operator", "sim", broker=broker)
+        else:
+            client = config.build("prompt_client", "terminal", broker=broker)
+            helper = threading.Thread(target=client.serve, args=(stop,), daemon=True)
+            helper.start()
+        broker.subscribe(show)
+        table = config.build("table", "manual", broker=broker)
+        position = table.move_to(args.x_mm, args.y_mm, timeout_s=args.timeout)
+    except (DeviceError, ValueError) as exc:
+        print(f"station table: {exc}", file=sys.stderr)
+        return 1
+    finally:
+        stop.set()
+        if operator is not None:
+            operator.close()
+    if args.json:
+        print(json.dumps({"x_mm": position.x_mm, "y_mm": position.y_mm}))
+    else:
+        print(f"table at X {position.x_mm:.5f} mm, Y {position.y_mm:.5f} mm")
+    return 0
