@@ -484,7 +484,8 @@ def precise_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
             raise EdgeNotFoundError(describe_missing(problems), found=tuple(new_models))
         models = new_models
         if params.window_px is None and spreads:
-            # window half-width ~ 3.5 line-spread sigmas (spread includes the two unit boxes: 2/12 px^2)
+            # window half-width: window_sigmas line-spread sigmas + 1 px (spread includes the two unit
+            # boxes of the first difference: 2/12 px^2)
             sigma = math.sqrt(max(_median(np.asarray(spreads)) - 1.0 / 6.0, 0.1))
             half = int(np.clip(math.ceil(params.window_sigmas * sigma) + 1, 3, 12))
             border = half + 2
