@@ -61,7 +61,10 @@ def read_image(path: str | Path) -> npt.NDArray[np.uint8] | npt.NDArray[np.uint1
 def write_image(path: str | Path, image: npt.NDArray[np.uint8] | npt.NDArray[np.uint16]) -> Path:
     """Write ``image`` losslessly (PNG by default); raises ImageFileError when it cannot."""
     p = Path(path)
-    ok, buf = cv2.imencode(p.suffix or ".png", image)
+    try:
+        ok, buf = cv2.imencode(p.suffix or ".png", image)
+    except cv2.error:
+        ok = False
     if not ok:
         raise ImageFileError(p, f"OpenCV cannot encode an image as {p.suffix!r}")
     p.write_bytes(buf.tobytes())

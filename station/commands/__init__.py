@@ -14,9 +14,9 @@ Register = Callable[[SubParsers], None]
 
 
 def _core() -> list[Register]:
-    from station.commands import measure, sweep, table, validate
+    from station.commands import camera, measure, sweep, table, validate
 
-    return [measure.register, validate.register, sweep.register, table.register]
+    return [measure.register, validate.register, sweep.register, camera.register, table.register]
 
 
 CORE_COMMANDS: list[Register] = _core()
