@@ -21,16 +21,16 @@ from typing import Any
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-import cv2  # noqa: E402
-import numpy as np  # noqa: E402
+import cv2
+import numpy as np
 
-from bench.baseline import BaselineError, measure_baseline  # noqa: E402
-from sim.imageset import render_random_set, render_validation_set  # noqa: E402
-from sim.presets import get_preset  # noqa: E402
-from station.imageio import read_image  # noqa: E402
-from station.imagesets import load_set  # noqa: E402
-from station.metrology import compare_displacements  # noqa: E402
-from station.vision import MeasureParams, MeasurementError, measure, series_centers_mm  # noqa: E402
+from bench.baseline import BaselineError, measure_baseline
+from sim.imageset import render_random_set, render_validation_set
+from sim.presets import get_preset
+from station.imageio import read_image
+from station.imagesets import load_set
+from station.metrology import compare_displacements
+from station.vision import MeasurementError, MeasureParams, measure, series_centers_mm
 
 UM_PER_PX = 10.0  # the simulated camera: 100 px/mm
 Method = Callable[[np.ndarray], tuple[tuple[float, float], tuple[float, float], np.ndarray | None]]
@@ -79,7 +79,7 @@ def run_random(set_dir: Path, method: Method) -> dict[str, Any]:
         image = read_image(f)
         t0 = time.perf_counter()
         try:
-            px, _, _ = method(image)  # type: ignore[arg-type]
+            px, _, _ = method(image)
         except (MeasurementError, BaselineError, cv2.error, np.linalg.LinAlgError):
             failures += 1
             continue
@@ -99,21 +99,25 @@ def run_random(set_dir: Path, method: Method) -> dict[str, Any]:
 def run_validation(set_dir: Path, method: Method, *, series: bool) -> dict[str, Any]:
     s = load_set(set_dir)
     assert s.displacements_um is not None
-    centers_mm, centers_px, corners, used = [], [], [], []
+    centers_mm: list[tuple[float, float]] = []
+    centers_px: list[tuple[float, float]] = []
+    corners: list[np.ndarray] = []
+    used: list[int] = []
     for i, f in enumerate(s.files):
         try:
-            px, mm, c = method(read_image(f))  # type: ignore[arg-type]
+            px, mm, c = method(read_image(f))
         except (MeasurementError, BaselineError, cv2.error, np.linalg.LinAlgError):
             continue
         centers_mm.append(mm)
         centers_px.append(px)
-        corners.append(c)
+        if c is not None:
+            corners.append(c)
         used.append(i)
-    if series and all(c is not None for c in corners):
-        mm = series_centers_mm(centers_px, corners, 25.4 / 32)  # type: ignore[arg-type]
+    if series and len(corners) == len(used):
+        positions = series_centers_mm(centers_px, corners, 25.4 / 32)
     else:
-        mm = np.array(centers_mm)
-    measured = (mm - mm[0]) * 1000.0
+        positions = np.array(centers_mm)
+    measured = (positions - positions[0]) * 1000.0
     commanded = s.displacements_um[used] - s.displacements_um[used][0]
     comp = compare_displacements(commanded, measured)
     return {
@@ -178,7 +182,9 @@ def render_table(results: dict[str, Any]) -> str:
                     f"{row['ms_per_image']:7.2f}"
                 )
         crb = entry["crb_center_mean_px"]
-        lines.append(f"{preset:8} {'Cramer-Rao bound':22} {crb:9.4f}  (mean radial) {crb * UM_PER_PX:9.4f} um")
+        lines.append(
+            f"{preset:8} {'Cramer-Rao bound':22} {crb:9.4f}  (mean radial) {crb * UM_PER_PX:9.4f} um"
+        )
     return "\n".join(lines)
 
 

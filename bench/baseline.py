@@ -64,8 +64,11 @@ def measure_baseline(
     found = [(float(r), float(t)) for r, t in hough[:, 0, :]]
     # normal angle theta: ~0 or ~pi for vertical lines, ~pi/2 for horizontal ones
     horizontal = [(r, t) for r, t in found if abs(t - np.pi / 2) < np.pi / 4]
-    vertical = [(r if t < np.pi / 2 else -r, t if t < np.pi / 2 else t - np.pi) for r, t in found
-                if abs(t - np.pi / 2) >= np.pi / 4]
+    vertical = [
+        (r if t < np.pi / 2 else -r, t if t < np.pi / 2 else t - np.pi)
+        for r, t in found
+        if abs(t - np.pi / 2) >= np.pi / 4
+    ]
     h_lines = sorted(_pick_two(horizontal, 10.0), key=lambda rt: rt[0])
     v_lines = sorted(_pick_two(vertical, 10.0), key=lambda rt: rt[0])
     top, bottom = (_refine(points, r, t) for r, t in h_lines)
