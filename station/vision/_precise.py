@@ -41,6 +41,8 @@ from station.vision._result import EdgeFit
 FloatArray = npt.NDArray[np.float64]
 
 COARSE_SCALE = 4
+#: Edges sampled together: the same orientation, profiles along the same image axis.
+_GROUPS: tuple[tuple[Edge, Edge], ...] = (("top", "bottom"), ("left", "right"))
 #: +1 where the intensity rises across the edge in the scan direction (+y or +x), -1 where it falls.
 _POLARITY: dict[Edge, float] = {"top": -1.0, "bottom": 1.0, "left": -1.0, "right": 1.0}
 
@@ -279,33 +281,35 @@ def _suppress_impulses(samples: npt.NDArray[np.float32], threshold: float) -> No
 
 def _profile_points(
     img: npt.NDArray[np.float32],
-    edge: Edge,
-    model: _EdgeModel,
+    *,
+    vertical: bool,
     along: npt.NDArray[np.intp],
+    mu: FloatArray,
+    polarity: npt.NDArray[np.float32],
     half: int,
     impulse_dn: float,
-    *,
     with_spread: bool = True,
-) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray | None]:
-    """Sub-pixel edge positions along ``along`` (module docstring, step 2).
+) -> tuple[npt.NDArray[np.bool_], FloatArray, FloatArray, FloatArray | None]:
+    """Sub-pixel edge positions of many profiles at once (module docstring, step 2).
 
-    Returns ``(along, across, strength, spread)`` of the profiles that fit inside the image:
-    ``strength`` is the window's summed first difference (the local contrast, DN), ``spread`` the
-    second central moment of the differences (px^2).
+    Profile i runs across the edge at ``along[i]`` (a column for horizontal edges, a row for vertical
+    ones), in a window of ``2 * half + 2`` samples about the predicted position ``mu[i]``; ``polarity``
+    is +1 where the intensity rises along the scan. Profiles of several edges with the same orientation
+    go in one call. Returns ``(inside, across, strength, spread)``: ``inside`` marks the profiles whose
+    window fits in the image; the others are for those only: ``across`` the position (px),
+    ``strength`` the window's summed first difference (the local contrast, DN), ``spread`` the second
+    central moment of the differences (px^2).
     """
     h, w = img.shape
-    n_across = h if edge not in VERTICAL else w
-    mu = model.slope * along + model.intercept
+    n_across = w if vertical else h
     base = np.floor(mu).astype(np.intp) - half
     inside = (base >= 0) & (base + 2 * half + 1 < n_across)
-    along, mu, base = along[inside], mu[inside], base[inside]
+    along, mu, base, polarity = along[inside], mu[inside], base[inside], polarity[inside]
     k = base[:, None] + np.arange(2 * half + 2)[None, :]
-    flat = along[:, None] * w + k if edge in VERTICAL else k * w + along[:, None]
+    flat = along[:, None] * w + k if vertical else k * w + along[:, None]
     samples = np.take(img, flat)
     _suppress_impulses(samples, impulse_dn)
-    d = samples[:, 1:] - samples[:, :-1]
-    if _POLARITY[edge] < 0:
-        np.negative(d, out=d)
+    d = (samples[:, 1:] - samples[:, :-1]) * polarity[:, None]
     # positions relative to each window's first sample keep float32 exact to ~1e-6 px
     pos = np.arange(2 * half + 1, dtype=np.float32) + np.float32(0.5)
     mu_rel = (mu - base).astype(np.float32)
@@ -314,13 +318,12 @@ def _profile_points(
     strength = wd.sum(axis=1, dtype=np.float64)
     safe = np.where(strength > 0, strength, 1.0)
     rel = (wd @ pos).astype(np.float64) / safe
-    across = base + rel
     spread = (
         ((wd * (pos[None, :] - rel[:, None].astype(np.float32)) ** 2).sum(axis=1) / safe)
         if with_spread
         else None
     )
-    return along.astype(np.float64), across, strength, spread
+    return inside, base + rel, strength, spread
 
 
 def _median(a: FloatArray) -> float:
@@ -409,6 +412,55 @@ def undistort(img: npt.NDArray[np.float32], params: MeasureParams) -> npt.NDArra
     )
 
 
+def _fit_edge(
+    edge: Edge,
+    t: FloatArray,
+    a: FloatArray,
+    strength: FloatArray,
+    spread: FloatArray | None,
+    model: _EdgeModel,
+    params: MeasureParams,
+    *,
+    half: int,
+    last: bool,
+) -> tuple[EdgeFit | None, _EdgeModel, float | None] | str:
+    """One edge's line from its profiles: (fit on the last pass, new model, median spread), or the
+    reason it was not found."""
+    if t.size < params.min_edge_points:
+        return f"{t.size} profiles inside the frame (at least {params.min_edge_points})"
+    contrast = _median(strength)
+    if contrast < params.min_contrast_dn:
+        return f"its contrast is {contrast:.1f} DN (at least {params.min_contrast_dn} DN)"
+    good = strength > params.min_contrast_fraction * contrast
+    good &= np.abs(a - (model.slope * t + model.intercept)) < (half / 2.0 if last else half - 2.0)
+    if good.sum() < params.min_edge_points:
+        return f"only {int(good.sum())} profiles show the edge"
+    vertical = edge in VERTICAL
+    x, y = (a[good], t[good]) if vertical else (t[good], a[good])
+    try:
+        line, inliers, rms = _robust_tls(
+            x, y, _line_of(model, vertical=vertical), params.outlier_sigma, rounds=2 if last else 1
+        )
+    except ValueError:
+        return "its points do not lie on a line"
+    line = _orient(line, vertical=vertical)
+    if rms > params.residual_limit_px:
+        return f"its points are not on a line (rms {rms:.2f} px)"
+    fit = None
+    if last:
+        fit = EdgeFit(
+            name=edge,
+            line=line,
+            segmented=int(t.size),
+            used=int(inliers.sum()),
+            removed=int(t.size - inliers.sum()),
+            rms_px=rms,
+            points=np.column_stack([x[inliers], y[inliers]]),
+        )
+    spread_median = _median(spread[good]) if spread is not None else None
+    return fit, _model_from_line(line, vertical=vertical), spread_median
+
+
 def precise_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
     """Four robust sub-pixel edge lines (module docstring); raises EdgeNotFoundError or GeometryError."""
     h, w = gray.shape
@@ -429,57 +481,54 @@ def precise_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
         spreads: list[float] = []
         new_models: dict[Edge, _EdgeModel] = {}
         crossing = _crossing_extent(models)
-        for edge in EDGES:
-            vertical = edge in VERTICAL
+        for group in _GROUPS:
+            vertical = group[0] in VERTICAL
             length = h if vertical else w
-            centre_along, half_groove = crossing[edge]
             # passes before the last only steer the windows: every 8th profile is plenty
-            along = np.arange(border, length - border, 1 if last else 8, dtype=np.intp)
-            keep = np.abs(along - centre_along) > half_groove + params.corner_margin_px
-            t, a, strength, spread = _profile_points(
-                img, edge, models[edge], along[keep], half, params.impulse_dn, with_spread=not last
+            along_all = np.arange(border, length - border, 1 if last else 8, dtype=np.intp)
+            parts: list[tuple[Edge, npt.NDArray[np.intp], FloatArray]] = []
+            for edge in group:
+                centre_along, half_groove = crossing[edge]
+                along = along_all[np.abs(along_all - centre_along) > half_groove + params.corner_margin_px]
+                m = models[edge]
+                parts.append((edge, along, m.slope * along + m.intercept))
+            along_cat = np.concatenate([a for _, a, _ in parts])
+            owner = np.concatenate([np.full(a.size, i) for i, (_, a, _) in enumerate(parts)])
+            polarity = np.array([_POLARITY[e] for e, _, _ in parts], np.float32)[owner]
+            inside, across, strength, spread = _profile_points(
+                img,
+                vertical=vertical,
+                along=along_cat,
+                mu=np.concatenate([mu for _, _, mu in parts]),
+                polarity=polarity,
+                half=half,
+                impulse_dn=params.impulse_dn,
+                with_spread=not last,
             )
-            if t.size < params.min_edge_points:
-                problems[edge] = f"{t.size} profiles inside the frame (at least {params.min_edge_points})"
-                continue
-            contrast = _median(strength)
-            if contrast < params.min_contrast_dn:
-                problems[edge] = f"its contrast is {contrast:.1f} DN (at least {params.min_contrast_dn} DN)"
-                continue
-            good = strength > params.min_contrast_fraction * contrast
-            good &= np.abs(a - (models[edge].slope * t + models[edge].intercept)) < (
-                half / 2.0 if last else half - 2.0
-            )
-            if good.sum() < params.min_edge_points:
-                problems[edge] = f"only {int(good.sum())} profiles show the edge"
-                continue
-            if spread is not None:
-                spreads.append(_median(spread[good]))
-            x, y = (a[good], t[good]) if vertical else (t[good], a[good])
-            pts = np.column_stack([x, y])
-            prior = _line_of(models[edge], vertical=vertical)
-            try:
-                line, inliers, rms = _robust_tls(
-                    pts[:, 0], pts[:, 1], prior, params.outlier_sigma, rounds=2 if last else 1
+            owner = owner[inside]
+            along_cat = along_cat[inside]
+            for i, (edge, _, _) in enumerate(parts):
+                sel = owner == i
+                outcome = _fit_edge(
+                    edge,
+                    along_cat[sel].astype(np.float64),
+                    across[sel],
+                    strength[sel],
+                    None if spread is None else spread[sel],
+                    models[edge],
+                    params,
+                    half=half,
+                    last=last,
                 )
-            except ValueError:
-                problems[edge] = "its points do not lie on a line"
-                continue
-            line = _orient(line, vertical=vertical)
-            if rms > params.residual_limit_px:
-                problems[edge] = f"its points are not on a line (rms {rms:.2f} px)"
-                continue
-            new_models[edge] = _model_from_line(line, vertical=vertical)
-            if last:
-                fits[edge] = EdgeFit(
-                    name=edge,
-                    line=line,
-                    segmented=int(t.size),
-                    used=int(inliers.sum()),
-                    removed=int(t.size - inliers.sum()),
-                    rms_px=rms,
-                    points=np.ascontiguousarray(pts[inliers]),
-                )
+                if isinstance(outcome, str):
+                    problems[edge] = outcome
+                    continue
+                fit, model, spread_median = outcome
+                new_models[edge] = model
+                if spread_median is not None:
+                    spreads.append(spread_median)
+                if fit is not None:
+                    fits[edge] = fit
         if problems:
             raise EdgeNotFoundError(describe_missing(problems), found=tuple(new_models))
         models = new_models
