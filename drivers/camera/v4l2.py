@@ -48,6 +48,8 @@ FOURCC_OF = {"Mono8": "GREY", "Mono16": "Y16 "}
 EXPOSURE_UNIT_US = 100.0
 """V4L2_CID_EXPOSURE_ABSOLUTE counts 100 µs units (V4L2 camera-control spec)."""
 V4L2_EXPOSURE_MANUAL = 1
+V4L2_MAJOR = 81
+"""Linux's character-device major number of video4linux devices."""
 
 
 class VideoCaptureLike(Protocol):
@@ -157,6 +159,8 @@ class V4L2Camera:
         with self._lock:
             if self._cap is not None:
                 return
+            if self._factory is opencv_capture and not os.path.exists(self._path):
+                raise self._open_failure()  # say it before OpenCV prints its own warning on stderr
             cap = self._factory(self._device)
             if not cap.isOpened():
                 cap.release()
@@ -340,10 +344,11 @@ class V4L2Camera:
                 f"no V4L2 device at {path}: check that the camera or frame grabber is connected and its "
                 "driver loaded (ls /dev/video*; v4l2-ctl --list-devices)"
             )
-        if not stat.S_ISCHR(os.stat(path).st_mode):
+        info = os.stat(path)
+        if not stat.S_ISCHR(info.st_mode) or os.major(info.st_rdev) != V4L2_MAJOR:
             return DeviceConnectionError(
-                f"{path} is not a video device (not a character device); give the grabber's /dev/videoN path "
-                "or its index"
+                f"{path} is not a V4L2 video device; give the grabber's /dev/videoN path or its index "
+                "(v4l2-ctl --list-devices)"
             )
         if not os.access(path, os.R_OK | os.W_OK):
             return DeviceConnectionError(

@@ -54,7 +54,9 @@ def parse_readings(text: str, prompt: Prompt) -> dict[str, float]:
 
 def describe(prompt: Prompt) -> str:
     """The text shown for ``prompt``: message, fields with their requested values, and the keys."""
-    lines = [f"\n[{prompt.source or prompt.kind}] {prompt.message}"]
+    origin = prompt.source or prompt.kind
+    header = prompt.message if prompt.message.startswith(origin) else f"[{origin}] {prompt.message}"
+    lines = ["", header]
     for f in prompt.fields:
         requested = "" if f.requested is None else f" (asked: {f.requested:.4f} {f.unit})".rstrip()
         lines.append(f"  {f.name}: {f.label}{requested}")

@@ -6,6 +6,8 @@ but "no such device" runs against ``FakeV4L2Capture``; that one also runs throug
 
 from __future__ import annotations
 
+import os
+import stat
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -13,7 +15,7 @@ import cv2
 import numpy as np
 import pytest
 
-from drivers.camera.v4l2 import V4L2Camera, device_path, fourcc_code, fourcc_text
+from drivers.camera.v4l2 import V4L2_MAJOR, V4L2Camera, device_path, fourcc_code, fourcc_text
 from station.devices import (
     DeviceBusyError,
     DeviceConnectionError,
@@ -64,7 +66,7 @@ def camera(device: Device) -> Iterator[V4L2Camera]:
 
 def test_a_missing_device_path_says_what_to_check(tmp_path: Path) -> None:
     missing = tmp_path / "video9"
-    cam = V4L2Camera(str(missing))  # real OpenCV: it opens nothing and says so only on stderr
+    cam = V4L2Camera(str(missing))  # the default (OpenCV) capture
     expected = rf"no V4L2 device at {missing}: .*v4l2-ctl --list-devices"
     with pytest.raises(DeviceConnectionError, match=expected):
         cam.open()
@@ -80,17 +82,26 @@ def test_a_missing_index_names_its_device_path() -> None:
     assert device_path(57) == "/dev/video57"
 
 
-def test_a_path_that_is_not_a_device_is_named(tmp_path: Path) -> None:
-    plain = tmp_path / "video0"
-    plain.write_bytes(b"")
-    with pytest.raises(DeviceConnectionError, match="not a video device"):
-        Device(opened=False).camera(str(plain)).open()
+@pytest.mark.parametrize("kind", ["regular file", "other character device"])
+def test_a_path_that_is_not_a_video_device_is_named(tmp_path: Path, kind: str) -> None:
+    path = tmp_path / "video0"
+    if kind == "regular file":
+        path.write_bytes(b"")
+    else:
+        path = Path("/dev/null")
+    with pytest.raises(DeviceConnectionError, match="is not a V4L2 video device"):
+        Device(opened=False).camera(str(path)).open()
 
 
-def test_a_device_that_exists_but_does_not_open_is_reported_busy() -> None:
-    # /dev/null is a character device that is not a camera: the best stand-in for a held grabber
-    with pytest.raises(DeviceBusyError, match=r"another program probably holds it \(fuser -v /dev/null\)"):
-        Device(opened=False).camera("/dev/null").open()
+def test_a_video_device_that_does_not_open_is_reported_busy(tmp_path: Path) -> None:
+    node = tmp_path / "video200"
+    try:  # a video4linux node with no driver behind it
+        os.mknod(node, stat.S_IFCHR | 0o600, os.makedev(V4L2_MAJOR, 200))
+    except PermissionError:
+        pytest.skip("making a device node needs root (CAP_MKNOD); CI runs as root")
+    expected = rf"another program probably holds it \(fuser -v {node}\)"
+    with pytest.raises(DeviceBusyError, match=expected):
+        Device(opened=False).camera(str(node)).open()
 
 
 def test_an_unsupported_pixel_format_is_refused_and_the_device_released() -> None:
