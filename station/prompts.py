@@ -30,7 +30,6 @@ from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
-from types import MappingProxyType
 
 log = logging.getLogger(__name__)
 
@@ -224,7 +223,7 @@ class PromptBroker:
                 fields=tuple(fields),
                 source=source,
                 created_s=self._clock(),
-                details=MappingProxyType(dict(details or {})),
+                details=dict(details or {}),
             )
             record = _Record(prompt, validate)
             self._open = record
@@ -267,7 +266,7 @@ class PromptBroker:
             answer = PromptAnswer(
                 prompt=record.prompt,
                 outcome=Outcome.CONFIRMED,
-                readings=MappingProxyType(values),
+                readings=values,
                 answered_s=self._clock(),
                 by=by,
             )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import threading
 from collections.abc import Callable, Iterator, Mapping
@@ -311,3 +312,13 @@ def test_many_threads_racing_to_answer_get_exactly_one_answer(broker: PromptBrok
         t.join(timeout=10)
     assert sorted(results) == ["answered"] + ["refused"] * 7
     assert handle.done()
+
+
+def test_prompts_and_answers_convert_to_plain_data_for_the_api(broker: PromptBroker) -> None:
+    handle = broker.ask("turn the knob", fields=FIELDS, details={"x_mm": 0.254})
+    answer = broker.confirm(handle.id, {"x_in": 0.0102})
+    data = dataclasses.asdict(answer)
+    assert data["prompt"]["details"] == {"x_mm": 0.254}
+    assert data["prompt"]["fields"][0]["name"] == "x_in"
+    assert data["readings"] == {"x_in": 0.0102}
+    assert data["outcome"] == "confirmed"
