@@ -91,7 +91,7 @@ class SimCamera:
 
     def grab(self, timeout_s: float = 2.0) -> Frame:
         if not self._open:
-            raise DeviceConnectionError("the simulated camera is closed: call open() first")
+            raise DeviceConnectionError("the simulated camera is not open: call open() first")
         with self._lock:
             if self._frame_rate_hz > 0:
                 now = self._clock()

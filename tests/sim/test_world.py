@@ -91,7 +91,7 @@ def test_defocus_blurs_the_image() -> None:
 def test_sim_camera_frames_are_new_and_measurable() -> None:
     camera = SimCamera(World(PERFECT), frame_rate_hz=0.0)
     assert isinstance(camera, Camera)
-    with pytest.raises(DeviceConnectionError, match="closed"):
+    with pytest.raises(DeviceConnectionError, match="not open"):
         camera.grab()
     with camera:
         a, b = camera.grab_many(2)

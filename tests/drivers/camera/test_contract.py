@@ -2,7 +2,7 @@
 
 Cases: Aravis' in-process fake camera (``Fake_1``), Aravis' GigE Vision simulator on 127.0.0.1 (a
 separate process), and the V4L2 driver over an injected capture object (no V4L2 device can exist on
-the build machines). A new implementation (the simulated camera of ``sim/``) joins by adding a
+the build machines), and the simulated flange camera of ``sim/``. A new implementation joins by adding a
 ``Rig`` builder to ``RIGS``: how to make an unopened camera (of ``size``, in one of ``pixel_formats``),
 and how to make it stop delivering frames.
 """
@@ -20,6 +20,8 @@ import pytest
 
 from drivers.camera.aravis import AravisCamera
 from drivers.camera.v4l2 import V4L2Camera
+from sim.camera import SimCamera
+from sim.world import World
 from station.devices import Camera, DeviceConnectionError, DeviceTimeoutError, Roi
 
 from .conftest import require_aravis
@@ -104,7 +106,23 @@ def _v4l2_injected_rig(request: pytest.FixtureRequest) -> Rig:
     return Rig(make, stall)
 
 
+def _sim_rig(request: pytest.FixtureRequest) -> Rig:
+    @contextlib.contextmanager
+    def stall(cam: Camera) -> Iterator[None]:
+        assert isinstance(cam, SimCamera)
+        # a free-running sensor at 0.1 Hz: the next frame is 10 s away, beyond any grab's timeout
+        cam.set_frame_rate_hz(0.1)
+        cam.grab(timeout_s=1.0)
+        yield
+
+    def make(pixel_format: str) -> Camera:
+        return SimCamera(World(), frame_rate_hz=FAST_HZ)
+
+    return Rig(make, stall, size=(640, 480), pixel_formats=("Mono8",))
+
+
 RIGS: dict[str, Callable[[pytest.FixtureRequest], Rig]] = {
+    "sim": _sim_rig,
     "aravis-fake": _aravis_fake_rig,
     "aravis-gv": _aravis_gv_rig,
     "v4l2-injected": _v4l2_injected_rig,
