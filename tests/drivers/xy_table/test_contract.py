@@ -1,17 +1,20 @@
 """The XYTable contract, run against every implementation.
 
 Each case builds a table whose moves get answered (for the manual table: a simulated operator that
-confirms every prompt through the broker). The simulated table of ``sim/`` joins by adding a case.
+confirms every prompt through the broker, or the simulated station's operator who turns the
+simulated world's micrometers).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import pytest
 
 from drivers.xy_table import ManualXYTable
+from sim.operator import SimOperator
+from sim.world import World
 from station.devices import MotionRejectedError, TablePosition, XYTable
 from station.prompts import PromptBroker, PromptEvent
 
@@ -37,8 +40,19 @@ def _manual_with_operator() -> XYTable:
     return ManualXYTable(broker, x_travel_in=(0.0, 1.0), y_travel_in=(0.0, 0.5))
 
 
+def _manual_in_sim_world() -> XYTable:
+    """The manual table in the simulated station: the sim operator turns the world's micrometers."""
+    broker = PromptBroker()
+    world = World()
+    _operators.append(SimOperator(broker, world).start())
+    return ManualXYTable(broker, x_travel_in=(0.0, 1.0), y_travel_in=(0.0, 0.5))
+
+
+_operators: list[SimOperator] = []
+
 CASES = {
     "manual-table": TableCase(_manual_with_operator, travel_mm=(25.4, 12.7)),
+    "manual-table-sim-world": TableCase(_manual_in_sim_world, travel_mm=(25.4, 12.7)),
 }
 
 
@@ -48,8 +62,10 @@ def case(request: pytest.FixtureRequest) -> TableCase:
 
 
 @pytest.fixture
-def table(case: TableCase) -> XYTable:
-    return case.make()
+def table(case: TableCase) -> Iterator[XYTable]:
+    yield case.make()
+    while _operators:
+        _operators.pop().close()
 
 
 def test_satisfies_the_protocol(table: XYTable) -> None:
