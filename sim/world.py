@@ -116,11 +116,11 @@ class World:
     """
 
     def __init__(
-        self, spec: WorldSpec | None = None, *, joints: Callable[[], Sequence[float]] | None = None
+        self, spec: WorldSpec | None = None, *, joints: Callable[[], npt.ArrayLike] | None = None
     ) -> None:
         self.spec = spec or WorldSpec()
         self._lock = threading.Lock()
-        self._joints = joints or (lambda: self.spec.reference_joints_deg)
+        self._joints: Callable[[], npt.ArrayLike] = joints or (lambda: self.spec.reference_joints_deg)
         tool = transform(np.eye(3), (0.0, 0.0, self.spec.tool_length_mm))
         self.kinematics = Kinematics(tool=tool)
         res_mm = self.spec.table.resolution_in * INCH_MM
