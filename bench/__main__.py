@@ -162,7 +162,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def render_table(results: dict[str, Any]) -> str:
     head = (
-        f"{'preset':8} {'method':22} {'centre mean/max px':>20} {'centre mean/max um':>20} "
+        f"{'preset':8} {'method':28} {'centre mean/max px':>20} {'centre mean/max um':>20} "
         f"{'raw mean/max um':>18} {'parallelogram um':>18} {'ms/img':>7}"
     )
     lines = [head, "-" * len(head)]
@@ -174,7 +174,7 @@ def render_table(results: dict[str, Any]) -> str:
             for key, label in variants:
                 v = row[key]
                 lines.append(
-                    f"{preset:8} {label:22} "
+                    f"{preset:8} {label:28} "
                     f"{row['center_mean_px']:9.4f} /{row['center_max_px']:8.4f} "
                     f"{row['center_mean_px'] * UM_PER_PX:9.3f} /{row['center_max_px'] * UM_PER_PX:8.3f} "
                     f"{v['raw_mean_um']:8.3f} /{v['raw_max_um']:7.3f} "
@@ -183,7 +183,7 @@ def render_table(results: dict[str, Any]) -> str:
                 )
         crb = entry["crb_center_mean_px"]
         lines.append(
-            f"{preset:8} {'Cramer-Rao bound':22} {crb:9.4f}  (mean radial) {crb * UM_PER_PX:9.4f} um"
+            f"{preset:8} {'Cramer-Rao bound':28} {crb:9.4f}  (mean radial) {crb * UM_PER_PX:9.4f} um"
         )
     return "\n".join(lines)
 
