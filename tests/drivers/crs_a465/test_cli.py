@@ -187,26 +187,34 @@ def test_the_driver_works_against_another_emulator_of_the_dialect(capsys, strang
 # ------------------------------------------------------------------ station sim controller
 
 
-def test_sim_controller_serves_several_cli_calls_until_terminated(capsys):
+def _first_line(proc: subprocess.Popen[str], limit_s: float = 60.0) -> str:
+    """The child's first stdout line; fail (instead of hanging) if none comes."""
+    assert proc.stdout is not None
+    ready, _, _ = select.select([proc.stdout], [], [], limit_s)
+    assert ready, "station sim controller printed nothing"
+    return proc.stdout.readline()
+
+
+def test_sim_controller_serves_several_cli_calls_until_terminated(capsys, tmp_path):
+    stderr = (tmp_path / "stderr.txt").open("w")
     proc = subprocess.Popen(
         [sys.executable, "-c", "import sys; from station.cli import main; sys.exit(main())",
          "sim", "controller", "--time-scale", "100", "--seed", "3", "--json"],
         stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
+        stderr=stderr,
         text=True,
     )  # fmt: skip
     try:
-        assert proc.stdout is not None
-        first = proc.stdout.readline()
-        port = json.loads(first)["port"]
+        port = json.loads(_first_line(proc))["port"]
         assert run(capsys, "--port", port, "joint", "1", "4")[0] == 0
         code, out, _ = run(capsys, "--port", port, "--json", "where")
         assert code == 0
         assert json.loads(out)["commanded_joints_deg"][0] == 4.0  # the second call sees the first's move
     finally:
         proc.send_signal(signal.SIGTERM)
-        _, err = proc.communicate(timeout=10)
-    assert proc.returncode == 0, err
+        proc.communicate(timeout=30)
+        stderr.close()
+    assert proc.returncode == 0, (tmp_path / "stderr.txt").read_text()
 
 
 def test_sim_controller_rejects_a_bad_fault_spec(capsys):
