@@ -70,6 +70,9 @@ class MeasureParams(BaseModel):
     flat_field: bool = Field(
         True, description="precise: divide edge profiles by the illumination fitted over the lands"
     )
+    profile_step: int = Field(
+        1, ge=1, le=16, description="precise: columns (rows) between edge profiles in the last pass"
+    )
     passes: int = Field(2, ge=2, le=6, description="precise: re-centring passes (the last one is kept)")
     corner_margin_px: float = Field(
         14.0, ge=0, le=200, description="precise: edge excluded this far beyond the perpendicular groove (px)"

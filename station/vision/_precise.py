@@ -484,8 +484,9 @@ def precise_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
         for group in _GROUPS:
             vertical = group[0] in VERTICAL
             length = h if vertical else w
-            # passes before the last only steer the windows: every 8th profile is plenty
-            along_all = np.arange(border, length - border, 1 if last else 8, dtype=np.intp)
+            # passes before the last only steer the windows: every 8th profile is plenty; the last
+            # takes every profile_step-th column (row)
+            along_all = np.arange(border, length - border, params.profile_step if last else 8, dtype=np.intp)
             parts: list[tuple[Edge, npt.NDArray[np.intp], FloatArray]] = []
             for edge in group:
                 centre_along, half_groove = crossing[edge]
