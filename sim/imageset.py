@@ -43,6 +43,8 @@ from sim.artifact import (
     truth_for,
 )
 from sim.presets import NoisePreset, get_preset
+from station.imagesets import DISPLACEMENTS, TRUTH, read_displacements
+from station.imagesets import ImageSetError as StationImageSetError
 
 __all__ = [
     "FORMAT",
@@ -61,8 +63,8 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 FORMAT = "station-imageset/1"
-TRUTH_FILE = "truth.json"
-DISPLACEMENTS_FILE = "displacements.csv"
+TRUTH_FILE = TRUTH
+DISPLACEMENTS_FILE = DISPLACEMENTS
 DISPLACEMENTS_HEADER = ("file", "dx_um", "dy_um")
 STEP_UM = 25.4 * 1000 * 0.0002  # 5.08 um: the table micrometers' 0.0002 in
 STEPS_PER_SIDE = 10
@@ -425,18 +427,16 @@ def load_truth(set_dir: str | Path) -> ImageSetTruth:
 
 
 def load_displacements(set_dir: str | Path) -> list[tuple[str, float, float]]:
-    """Read ``displacements.csv``: ``(file, dx_um, dy_um)`` per image, commanded, table axes."""
+    """Read ``displacements.csv``: ``(file, dx_um, dy_um)`` per image, commanded, table axes.
+
+    The station's own reader parses it (``station.imagesets``), so the simulator and the station
+    agree on the format by construction.
+    """
     path = Path(set_dir) / DISPLACEMENTS_FILE
+    if not path.is_file():
+        raise ImageSetError(f"{path} not found: is {set_dir} a validation set?")
     try:
-        with path.open(newline="", encoding="utf-8") as fh:
-            reader = csv.reader(fh)
-            header = tuple(next(reader, ()))
-            if header != DISPLACEMENTS_HEADER:
-                raise ImageSetError(
-                    f"{path}: header {','.join(header)!r} is not {','.join(DISPLACEMENTS_HEADER)!r}"
-                )
-            return [(row[0], float(row[1]), float(row[2])) for row in reader if row]
-    except FileNotFoundError:
-        raise ImageSetError(f"{path} not found: is {set_dir} a validation set?") from None
-    except (ValueError, IndexError) as exc:
-        raise ImageSetError(f"{path} is malformed: {exc}") from None
+        files, values = read_displacements(path)
+    except StationImageSetError as exc:
+        raise ImageSetError(str(exc)) from None
+    return [(f, float(dx), float(dy)) for f, (dx, dy) in zip(files, values, strict=True)]
