@@ -12,10 +12,11 @@ with the stages that limit its accuracy replaced (accuracy.md).
    sampling harmonics), so the estimator has no pixel-locking bias for any blur; a constant background
    slope cancels in the symmetric window. Re-centring on the fitted line (``passes``) removes the
    window's offset.
-3. **Robust orthogonal line fit** (replaces y-on-x regression with correlation-driven removal): a
-   Huber M-estimate (``cv2.fitLine``), then total least squares on the points within ``outlier_sigma``
-   robust standard deviations; glints, scratches and salt-and-pepper give off-line points or weak
-   profiles, both rejected. The rounded land corners are excluded by a margin around the crossing.
+3. **Robust orthogonal line fit** (replaces y-on-x regression with correlation-driven removal):
+   residuals are taken from the previous pass's line, points beyond ``outlier_sigma`` robust
+   (1.4826 MAD) sigmas are dropped, and the rest fitted by total least squares, twice; glints,
+   scratches and salt-and-pepper give off-line points or weak profiles, both rejected. The rounded
+   land corners are excluded by a margin around the crossing. The coarse stage lives in ``_coarse``.
 4. Optional lens-distortion correction: the image is resampled to an ideal pinhole camera with an
    OpenCV camera model before anything else (results in undistorted pixel coordinates).
 """
@@ -30,201 +31,20 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from station.vision._coarse import CoarseCross, fast_median, coarse_cross
 from station.vision._edges import EDGES, Edge
-from station.vision._errors import EdgeNotFoundError, GeometryError, describe_missing
+from station.vision._errors import EdgeNotFoundError, describe_missing
 from station.vision._geometry import VERTICAL, Line, intersect
 from station.vision._image import Gray8
-from station.vision._orientation import dominant_rotation_deg
 from station.vision._params import MeasureParams
 from station.vision._result import EdgeFit
 
 FloatArray = npt.NDArray[np.float64]
 
-COARSE_SCALE = 4
 #: Edges sampled together: the same orientation, profiles along the same image axis.
 _GROUPS: tuple[tuple[Edge, Edge], ...] = (("top", "bottom"), ("left", "right"))
 #: +1 where the intensity rises across the edge in the scan direction (+y or +x), -1 where it falls.
 _POLARITY: dict[Edge, float] = {"top": -1.0, "bottom": 1.0, "left": -1.0, "right": 1.0}
-
-
-@dataclass(frozen=True)
-class CoarseCross:
-    """The cross found on the reduced image, in full-resolution px.
-
-    ``theta``: rotation (rad; the horizontal groove runs along (cos, sin)); ``edges``: per edge, its
-    signed offset from the image centre along the edge's normal (px).
-    """
-
-    theta: float
-    offsets: dict[Edge, float]
-    illumination: npt.NDArray[np.float32] | None = None
-
-
-#: Exponents (i, j) of x^i y^j in the flat-field polynomial (degree 4: radial falloff and its tilt).
-_FLAT_TERMS = tuple((i, d - i) for d in range(5) for i in range(d + 1))
-
-
-def _flat_basis(x: FloatArray, y: FloatArray, shape: tuple[int, int]) -> FloatArray:
-    """Polynomial terms of normalised coordinates (-1..1 over the frame), stacked on the last axis."""
-    h, w = shape
-    xn = (x - (w - 1) / 2.0) / (w / 2.0)
-    yn = (y - (h - 1) / 2.0) / (h / 2.0)
-    return np.stack([xn**i * yn**j for i, j in _FLAT_TERMS], axis=-1)
-
-
-@lru_cache(maxsize=8)
-def _small_basis(small_shape: tuple[int, int], shape: tuple[int, int], scale: int) -> FloatArray:
-    """Flat-field polynomial terms at the reduced image's pixel centres, (sh*sw, terms)."""
-    xf, yf = _centred_grid(small_shape, shape, scale)
-    h, w = shape
-    basis = _flat_basis((xf + (w - 1) / 2.0).ravel(), (yf + (h - 1) / 2.0).ravel(), shape)
-    basis.setflags(write=False)
-    return basis
-
-
-def fit_illumination(
-    small: npt.NDArray[np.float32], land: npt.NDArray[np.bool_], shape: tuple[int, int], *, scale: int
-) -> npt.NDArray[np.float32] | None:
-    """The relative illumination (vignetting, light gradient) over the frame, fitted on the lands.
-
-    A degree-4 polynomial in the image coordinates is fitted to the land pixels of the reduced image
-    (every second one is plenty), refitted once without scratches and glints (beyond 3 MAD), normalised
-    to mean 1 over the lands and resampled to full resolution (float32, ``shape``). None when too few
-    land pixels are seen.
-    """
-    sh, sw = small.shape
-    basis = _small_basis((sh, sw), shape, scale)
-    idx = np.flatnonzero(land.ravel())[::2]
-    if idx.size < 10 * len(_FLAT_TERMS):
-        return None
-    A = basis[idx]
-    values = small.ravel()[idx].astype(np.float64)
-    coef = np.linalg.solve(A.T @ A, A.T @ values)
-    resid = values - A @ coef
-    mad = _median(np.abs(resid - _median(resid)))
-    keep = np.abs(resid) <= 3.0 * 1.4826 * max(mad, 1e-6)
-    Ak = A[keep]
-    coef = np.linalg.solve(Ak.T @ Ak, Ak.T @ values[keep])
-    level = float(np.mean(Ak @ coef))
-    if level <= 0:
-        return None
-    flat_small = (basis @ (coef / level)).reshape(small.shape).astype(np.float32)
-    if float(flat_small.min()) <= 0.05:
-        return None  # the fit ran wild (too few lands in view): do without
-    h, w = shape
-    return np.asarray(cv2.resize(flat_small, (w, h), interpolation=cv2.INTER_LINEAR), np.float32)
-
-
-def _band_edges(profile: FloatArray, counts: FloatArray) -> tuple[int, int]:
-    """Indices (falling, rising) of the darkest band's two edges in a projected profile."""
-    valid = counts >= max(3.0, 0.2 * float(counts.max()))
-    idx = np.flatnonzero(valid)
-    lo, hi = int(idx[0]), int(idx[-1])
-    p = profile[lo : hi + 1]
-    smooth = np.convolve(p, np.ones(3) / 3.0, mode="same")
-    smooth[0], smooth[-1] = p[0], p[-1]
-    d = np.diff(smooth)
-    # the groove: the pair (strongest fall, strongest rise after it) with the deepest dark band between
-    # a real groove's walls stand far above the profile's noise (pure noise has no such band)
-    noise = 1.4826 * _median(np.abs(d - _median(d)))
-    fall = int(np.argmin(d))
-    rise_candidates = d[fall + 1 :]
-    if rise_candidates.size == 0:
-        raise ValueError("no rising edge after the falling one")
-    rise = fall + 1 + int(np.argmax(rise_candidates))
-    best_fall = fall
-    # check the alternative: strongest rise first, strongest fall before it
-    rise2 = int(np.argmax(d))
-    if rise2 > 0:
-        fall2 = int(np.argmin(d[:rise2]))
-        depth1 = d[rise] - d[fall]
-        depth2 = d[rise2] - d[fall2]
-        if depth2 > depth1:
-            best_fall, rise = fall2, rise2
-    if min(-d[best_fall], d[rise]) < max(8.0 * noise, 2.0):
-        raise ValueError("no dark band stands out of the profile's noise")
-    return lo + best_fall, lo + rise
-
-
-@lru_cache(maxsize=8)
-def _centred_grid(
-    small_shape: tuple[int, int], shape: tuple[int, int], scale: int = COARSE_SCALE
-) -> tuple[FloatArray, FloatArray]:
-    """Full-resolution coordinates (relative to the image centre) of the reduced image's pixel centres.
-
-    Reduced pixel (i, j) covers full-res [s*j - 0.5, s*j + s - 0.5]: its centre is s*j + (s - 1)/2.
-    """
-    s = scale
-    sh, sw = small_shape
-    h, w = shape
-    ys, xs = np.mgrid[0:sh, 0:sw].astype(np.float64)
-    xf = xs * s + (s - 1) / 2.0 - (w - 1) / 2.0
-    yf = ys * s + (s - 1) / 2.0 - (h - 1) / 2.0
-    xf.setflags(write=False)
-    yf.setflags(write=False)
-    return xf, yf
-
-
-def coarse_cross(gray: Gray8, params: MeasureParams) -> CoarseCross:
-    """Find the two grooves roughly (to about a pixel) on a reduced image."""
-    h, w = gray.shape
-    s = COARSE_SCALE
-    small = cv2.resize(gray, (w // s, h // s), interpolation=cv2.INTER_AREA).astype(np.float32)
-    rotation_deg, strength = dominant_rotation_deg(small)
-    max_rot = params.rotation_limit_deg
-    if strength < 0.05:
-        raise EdgeNotFoundError(
-            "found 0 of 4 edges: no straight edges in the image (is the crossed-groove artifact in view "
-            "and in focus?)"
-        )
-    if abs(rotation_deg) > max_rot:
-        raise GeometryError(
-            f"the cross appears rotated by {rotation_deg:.0f} deg; this mode measures within "
-            f"+/-{max_rot:.0f} deg: turn the artifact (or the camera) toward the image axes"
-        )
-    theta = math.radians(rotation_deg)
-    xf, yf = _centred_grid(small.shape, (h, w))
-    c, sn = math.cos(theta), math.sin(theta)
-    u = xf * c + yf * sn  # along the horizontal groove
-    v = -xf * sn + yf * c  # along the vertical groove
-    offsets: dict[Edge, float] = {}
-    values = small.ravel().astype(np.float64)
-    grooves: tuple[tuple[FloatArray, Edge, Edge], ...] = ((v, "top", "bottom"), (u, "left", "right"))
-    for coord, falling, rising in grooves:
-        q = coord.ravel() / s
-        base = math.floor(float(q.min()))
-        bins = np.floor(q - base).astype(np.intp)
-        counts = np.bincount(bins).astype(np.float64)
-        sums = np.bincount(bins, weights=values)
-        profile = sums / np.maximum(counts, 1.0)
-        try:
-            i_fall, i_rise = _band_edges(profile, counts)
-        except ValueError:
-            continue
-        # diff index i sits between bins i and i+1: boundary at bin value i + 1 -> coordinate (i+1+base)*s
-        offsets[falling] = (i_fall + 1 + base) * s
-        offsets[rising] = (i_rise + 1 + base) * s
-    if len(offsets) < 4:
-        raise EdgeNotFoundError(
-            describe_missing({e: "no dark band across the frame" for e in EDGES if e not in offsets}),
-            found=tuple(offsets),
-        )
-    illumination = None
-    if params.flat_field:
-        margin = 2.0 * s
-        v_mid = (offsets["top"] + offsets["bottom"]) / 2.0
-        v_half = (offsets["bottom"] - offsets["top"]) / 2.0 + margin
-        u_mid = (offsets["left"] + offsets["right"]) / 2.0
-        u_half = (offsets["right"] - offsets["left"]) / 2.0 + margin
-        land = (np.abs(v - v_mid) > v_half) & (np.abs(u - u_mid) > u_half)
-        # the illumination is smooth: fit it on the image reduced once more (2x2 of the reduced pixels)
-        sh2, sw2 = small.shape[0] // 2, small.shape[1] // 2
-        tiny = np.asarray(
-            cv2.resize(small[: 2 * sh2, : 2 * sw2], (sw2, sh2), interpolation=cv2.INTER_AREA), np.float32
-        )
-        land2 = land[: 2 * sh2 : 2, : 2 * sw2 : 2] & land[1 : 2 * sh2 : 2, 1 : 2 * sw2 : 2]
-        illumination = fit_illumination(tiny, land2, (h, w), scale=2 * s)
-    return CoarseCross(theta, offsets, illumination)
 
 
 @dataclass(frozen=True)
@@ -326,12 +146,6 @@ def _profile_points(
     return inside, base + rel, strength, spread
 
 
-def _median(a: FloatArray) -> float:
-    """The (upper) median: one partition, without np.median's overhead on small arrays."""
-    k = a.size // 2
-    return float(np.partition(a, k)[k])
-
-
 def _tls(x: FloatArray, y: FloatArray) -> Line:
     """Total-least-squares line through points (closed form for 2-D: the principal axis)."""
     n = x.size
@@ -358,8 +172,8 @@ def _robust_tls(
     line = prior
     for _ in range(rounds):
         r = resid[inliers]
-        med = _median(r)
-        sigma = max(1.4826 * _median(np.abs(r - med)), 1e-3)
+        med = fast_median(r)
+        sigma = max(1.4826 * fast_median(np.abs(r - med)), 1e-3)
         inliers = np.abs(resid - med) <= outlier_sigma * sigma
         if inliers.sum() < 3:
             raise ValueError("too few inliers")
@@ -428,7 +242,7 @@ def _fit_edge(
     reason it was not found."""
     if t.size < params.min_edge_points:
         return f"{t.size} profiles inside the frame (at least {params.min_edge_points})"
-    contrast = _median(strength)
+    contrast = fast_median(strength)
     if contrast < params.min_contrast_dn:
         return f"its contrast is {contrast:.1f} DN (at least {params.min_contrast_dn} DN)"
     good = strength > params.min_contrast_fraction * contrast
@@ -457,7 +271,7 @@ def _fit_edge(
             rms_px=rms,
             points=np.column_stack([x[inliers], y[inliers]]),
         )
-    spread_median = _median(spread[good]) if spread is not None else None
+    spread_median = fast_median(spread[good]) if spread is not None else None
     return fit, _model_from_line(line, vertical=vertical), spread_median
 
 
@@ -536,7 +350,7 @@ def precise_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
         if params.window_px is None and spreads:
             # window half-width: window_sigmas line-spread sigmas + 1 px (spread includes the two unit
             # boxes of the first difference: 2/12 px^2)
-            sigma = math.sqrt(max(_median(np.asarray(spreads)) - 1.0 / 6.0, 0.1))
+            sigma = math.sqrt(max(fast_median(np.asarray(spreads)) - 1.0 / 6.0, 0.1))
             half = int(np.clip(math.ceil(params.window_sigmas * sigma) + 1, 3, 12))
             border = half + 2
     return fits
