@@ -31,7 +31,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from station.vision._coarse import CoarseCross, fast_median, coarse_cross
+from station.vision._coarse import CoarseCross, coarse_cross, fast_median
 from station.vision._edges import EDGES, Edge
 from station.vision._errors import EdgeNotFoundError, describe_missing
 from station.vision._geometry import VERTICAL, Line, intersect
