@@ -258,7 +258,7 @@ def _fit_edge(
     except ValueError:
         return "its points do not lie on a line"
     line = _orient(line, vertical=vertical)
-    if rms > params.residual_limit_px:
+    if last and rms > params.residual_limit_px:  # earlier passes only steer the windows
         return f"its points are not on a line (rms {rms:.2f} px)"
     fit = None
     if last:

@@ -7,6 +7,8 @@ hard 0.010 / 0.027.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -88,3 +90,21 @@ def test_precise_mode_is_the_default_and_paper_mode_is_trial_7() -> None:
     assert MeasureParams().mode == "precise"
     p = MeasureParams(mode="paper")
     assert (p.filter, p.skip, p.testwidth, p.testheight, p.threshold) == ("none", 1, 5, 5, 0.30)
+
+
+def test_hard_preset_with_large_rotations_measures_every_image(tmp_path: Path) -> None:
+    """Regression: the first pass's residual (it only steers the windows) rejected good edges."""
+    from sim.imageset import render_random_set
+    from station.batch import measure_files
+    from station.imagesets import load_set
+
+    s = load_set(render_random_set(tmp_path / "set", preset="hard", count=12, seed=9, max_rotation_deg=25.0))
+    results = list(measure_files(s.files, PRECISE))
+    assert [r.error for r in results if not r.ok] == []
+    e = [
+        np.hypot(*np.subtract(r.measurement.center_px, s.truth[Path(r.file).name].center_px))
+        for r in results
+        if r.measurement
+    ]
+    assert np.mean(e) < 0.02
+    assert np.max(e) < 0.06
