@@ -241,7 +241,10 @@ def _fit_edge(
     """One edge's line from its profiles: (fit on the last pass, new model, median spread), or the
     reason it was not found."""
     if t.size < params.min_edge_points:
-        return f"{t.size} profiles inside the frame (at least {params.min_edge_points})"
+        return (
+            f"only {t.size} of its profiles fit inside the frame (at least {params.min_edge_points}): "
+            "it runs too close to the border; keep the groove corners 10 px or more inside the frame"
+        )
     contrast = fast_median(strength)
     if contrast < params.min_contrast_dn:
         return f"its contrast is {contrast:.1f} DN (at least {params.min_contrast_dn} DN)"

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from station.vision import GeometryError, MeasureParams, measure
+from station.vision import EdgeNotFoundError, GeometryError, MeasureParams, measure
 from tests.vision.conftest import Render, random_cases
 
 PAPER = MeasureParams(mode="paper")
@@ -64,6 +64,19 @@ def test_crossing_anywhere_with_corners_in_frame(rendered: Render, cx: float, cy
     for params, bound in ((PRECISE, 0.01), (PAPER, 0.15)):
         m = measure(image, params)
         assert np.hypot(*np.subtract(m.center_px, truth.center_px)) < bound
+
+
+def test_corners_near_the_border_are_measured_or_explained(rendered: Render) -> None:
+    # corners 13-14 px inside the frame: still measured
+    image, truth = rendered(56.0, 424.0, rotation_deg=3.0)
+    assert min(truth.corners_px[:, 0].min(), 479 - truth.corners_px[:, 1].max()) > 12
+    assert np.hypot(*np.subtract(measure(image, PRECISE).center_px, truth.center_px)) < 0.02
+    # the bottom corners 9 px from the border: that edge's profile windows do not fit, and the error
+    # says what to do
+    image, truth = rendered(52.0, 428.0, rotation_deg=3.0)
+    assert 479 - truth.corners_px[:, 1].max() < 10
+    with pytest.raises(EdgeNotFoundError, match="too close to the border"):
+        measure(image, PRECISE)
 
 
 def test_cross_near_45_degrees_is_a_clear_error_in_both_modes(rendered: Render) -> None:
