@@ -31,7 +31,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from station.vision._coarse import CoarseCross, coarse_cross, fast_median
+from station.vision._coarse import CoarseCross, Illumination, coarse_cross, fast_median
 from station.vision._edges import EDGES, Edge
 from station.vision._errors import EdgeNotFoundError, describe_missing
 from station.vision._geometry import VERTICAL, Line, intersect
@@ -100,7 +100,7 @@ def _suppress_impulses(samples: npt.NDArray[np.float32], threshold: float) -> No
 
 
 def _profile_points(
-    img: npt.NDArray[np.float32],
+    img: npt.NDArray[np.uint8] | npt.NDArray[np.float32],
     *,
     vertical: bool,
     along: npt.NDArray[np.intp],
@@ -108,6 +108,7 @@ def _profile_points(
     polarity: npt.NDArray[np.float32],
     half: int,
     impulse_dn: float,
+    illumination: Illumination | None = None,
     with_spread: bool = True,
 ) -> tuple[npt.NDArray[np.bool_], FloatArray, FloatArray, FloatArray | None]:
     """Sub-pixel edge positions of many profiles at once (module docstring, step 2).
@@ -127,7 +128,15 @@ def _profile_points(
     along, mu, base, polarity = along[inside], mu[inside], base[inside], polarity[inside]
     k = base[:, None] + np.arange(2 * half + 2)[None, :]
     flat = along[:, None] * w + k if vertical else k * w + along[:, None]
-    samples = np.take(img, flat)
+    samples = np.take(img, flat).astype(np.float32)
+    if illumination is not None:
+        # flat field: the illumination is smooth, linear over one window: divide the samples by it,
+        # evaluated at the window's two ends
+        ends = np.column_stack([base, base + 2 * half + 1]).astype(np.float64)
+        a = np.broadcast_to(along[:, None].astype(np.float64), ends.shape)
+        v = illumination.at(ends, a) if vertical else illumination.at(a, ends)
+        ramp = np.linspace(0.0, 1.0, 2 * half + 2, dtype=np.float64)[None, :]
+        samples /= (v[:, :1] + (v[:, 1:] - v[:, :1]) * ramp).astype(np.float32)
     _suppress_impulses(samples, impulse_dn)
     d = (samples[:, 1:] - samples[:, :-1]) * polarity[:, None]
     # positions relative to each window's first sample keep float32 exact to ~1e-6 px
@@ -281,12 +290,11 @@ def _fit_edge(
 def precise_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
     """Four robust sub-pixel edge lines (module docstring); raises EdgeNotFoundError or GeometryError."""
     h, w = gray.shape
-    img = undistort(gray.astype(np.float32), params)
+    img: npt.NDArray[np.uint8] | npt.NDArray[np.float32] = gray
     if params.camera_matrix is not None:
+        img = undistort(gray.astype(np.float32), params)
         gray = np.clip(np.rint(img), 0, 255).astype(np.uint8)  # the coarse stage works on 8 bits
     coarse = coarse_cross(gray, params)
-    if coarse.illumination is not None:
-        img /= coarse.illumination  # flat field: vignetting would bias the profiles' centroids
     models = {e: _initial_model(coarse, e, (h, w)) for e in EDGES}
     # the first pass steers from the coarse cross (a pixel or two off at the frame's ends): wide window
     half = params.window_px if params.window_px is not None else 8
@@ -321,6 +329,7 @@ def precise_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
                 polarity=polarity,
                 half=half,
                 impulse_dn=params.impulse_dn,
+                illumination=coarse.illumination,  # vignetting would bias the profiles' centroids
                 with_spread=not last,
             )
             owner = owner[inside]
