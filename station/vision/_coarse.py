@@ -92,12 +92,12 @@ def fit_illumination(
     """The relative illumination (vignetting, light gradient) over the frame, fitted on the lands.
 
     A degree-4 polynomial in the image coordinates is fitted to the land pixels of the reduced image
-    (every second one is plenty), refitted once without scratches and glints (beyond 3 MAD) and
+    (every fourth one is plenty), refitted once without scratches and glints (beyond 3 MAD) and
     normalised to mean 1 over the lands. None when too few land pixels are seen or the fit runs wild.
     """
     sh, sw = small.shape
     basis = _small_basis((sh, sw), shape, scale)
-    idx = np.flatnonzero(land.ravel())[::2]
+    idx = np.flatnonzero(land.ravel())[::4]
     if idx.size < 10 * len(_FLAT_TERMS):
         return None
     A = basis[idx]
