@@ -30,6 +30,7 @@ from sim.presets import get_preset
 from station.imageio import read_image
 from station.imagesets import load_set
 from station.metrology import compare_displacements
+from station.runtime import tune_allocator
 from station.vision import MeasurementError, MeasureParams, measure, series_centers_mm
 
 UM_PER_PX = 10.0  # the simulated camera: 100 px/mm
@@ -136,6 +137,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--count", type=int, default=48, help="random poses per preset")
     args = parser.parse_args(argv)
     cv2.setNumThreads(1)
+    tune_allocator()  # as the station's command line does
     results: dict[str, Any] = {"presets": {}, "um_per_px": UM_PER_PX}
     for preset in ("nominal", "hard"):
         rnd = args.data / f"random-{preset}-{args.count}"

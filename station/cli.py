@@ -18,6 +18,7 @@ from importlib.metadata import entry_points
 
 from station import __version__
 from station.commands import CORE_COMMANDS
+from station.runtime import tune_allocator
 
 log = logging.getLogger(__name__)
 
@@ -51,6 +52,7 @@ def _configure_logging(verbosity: int) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    tune_allocator()
     parser = build_parser()
     args = parser.parse_args(argv)
     _configure_logging(args.verbose)
