@@ -10,11 +10,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 
 import cv2
 import numpy as np
 import numpy.typing as npt
+from numpy.polynomial.polynomial import polyval2d
 
 from station.vision._edges import EDGES, Edge
 from station.vision._errors import EdgeNotFoundError, GeometryError, describe_missing
@@ -83,7 +84,18 @@ class Illumination:
     shape: tuple[int, int]
 
     def at(self, x: FloatArray, y: FloatArray) -> FloatArray:
-        return np.asarray(_flat_basis(x, y, self.shape) @ self.coef, dtype=np.float64)
+        """The illumination at image points (any shape), by Horner's scheme in x and y."""
+        h, w = self.shape
+        xn = (x - (w - 1) / 2.0) / (w / 2.0)
+        yn = (y - (h - 1) / 2.0) / (h / 2.0)
+        return np.asarray(polyval2d(xn, yn, self._grid), dtype=np.float64)
+
+    @cached_property
+    def _grid(self) -> FloatArray:
+        grid = np.zeros((_FLAT_DEGREE + 1, _FLAT_DEGREE + 1))
+        for (i, j), value in zip(_FLAT_TERMS, self.coef, strict=True):
+            grid[i, j] = value
+        return grid
 
 
 def fit_illumination(

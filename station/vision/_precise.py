@@ -85,6 +85,14 @@ def _line_of(model: _EdgeModel, *, vertical: bool) -> Line:
     return (-model.slope / norm, 1.0 / norm, model.intercept / norm)
 
 
+@lru_cache(maxsize=16)
+def _ramp(n: int) -> npt.NDArray[np.float32]:
+    """(1, n) from 0 to 1: linear interpolation weights across a window of n samples."""
+    ramp = np.linspace(0.0, 1.0, n, dtype=np.float32)[None, :]
+    ramp.setflags(write=False)
+    return ramp
+
+
 def _suppress_impulses(samples: npt.NDArray[np.float32], threshold: float) -> None:
     """Replace isolated impulses (salt-and-pepper, hot pixels) in profiles across an edge, in place.
 
@@ -135,8 +143,9 @@ def _profile_points(
         ends = np.column_stack([base, base + 2 * half + 1]).astype(np.float64)
         a = np.broadcast_to(along[:, None].astype(np.float64), ends.shape)
         v = illumination.at(ends, a) if vertical else illumination.at(a, ends)
-        ramp = np.linspace(0.0, 1.0, 2 * half + 2, dtype=np.float64)[None, :]
-        samples /= (v[:, :1] + (v[:, 1:] - v[:, :1]) * ramp).astype(np.float32)
+        ramp = _ramp(2 * half + 2)
+        v32 = v.astype(np.float32)
+        samples /= v32[:, :1] + (v32[:, 1:] - v32[:, :1]) * ramp
     _suppress_impulses(samples, impulse_dn)
     d = (samples[:, 1:] - samples[:, :-1]) * polarity[:, None]
     # positions relative to each window's first sample keep float32 exact to ~1e-6 px
