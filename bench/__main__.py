@@ -31,7 +31,13 @@ from station.imageio import read_image
 from station.imagesets import load_set
 from station.metrology import compare_displacements
 from station.runtime import tune_allocator
-from station.vision import MeasurementError, MeasureParams, measure, series_centers_mm
+from station.vision import (
+    NOMINAL_GROOVE_WIDTH_MM,
+    MeasurementError,
+    MeasureParams,
+    measure,
+    series_centers_mm,
+)
 
 UM_PER_PX = 10.0  # the simulated camera: 100 px/mm
 Method = Callable[[np.ndarray], tuple[tuple[float, float], tuple[float, float], np.ndarray | None]]
@@ -115,7 +121,7 @@ def run_validation(set_dir: Path, method: Method, *, series: bool) -> dict[str, 
             corners.append(c)
         used.append(i)
     if series and len(corners) == len(used):
-        positions = series_centers_mm(centers_px, corners, 25.4 / 32)
+        positions = series_centers_mm(centers_px, corners, NOMINAL_GROOVE_WIDTH_MM)
     else:
         positions = np.array(centers_mm)
     measured = (positions - positions[0]) * 1000.0

@@ -220,7 +220,3 @@ class World:
             camera=self.spec.camera,
             rng=rng,
         )
-
-    def image_shift_px_per_mm(self) -> float:
-        """Image scale at the focal plane (px per mm of artifact motion)."""
-        return self.spec.camera.px_per_mm

@@ -18,7 +18,7 @@ import numpy.typing as npt
 from numpy.polynomial.polynomial import polyval2d
 
 from station.vision._edges import EDGES, Edge
-from station.vision._errors import EdgeNotFoundError, GeometryError, describe_missing
+from station.vision._errors import EdgeNotFoundError, describe_missing, rotated_too_far
 from station.vision._image import Gray8
 from station.vision._orientation import dominant_rotation_deg
 from station.vision._params import MeasureParams
@@ -52,11 +52,15 @@ _FLAT_DEGREE = 4
 _FLAT_TERMS = tuple((i, d - i) for d in range(_FLAT_DEGREE + 1) for i in range(d + 1))
 
 
+def _normalised(x: FloatArray, y: FloatArray, shape: tuple[int, int]) -> tuple[FloatArray, FloatArray]:
+    """Image coordinates scaled to -1..1 over the frame (the flat-field polynomial's variables)."""
+    h, w = shape
+    return (x - (w - 1) / 2.0) / (w / 2.0), (y - (h - 1) / 2.0) / (h / 2.0)
+
+
 def _flat_basis(x: FloatArray, y: FloatArray, shape: tuple[int, int]) -> FloatArray:
     """Polynomial terms of normalised coordinates (-1..1 over the frame), stacked on the last axis."""
-    h, w = shape
-    xn = (x - (w - 1) / 2.0) / (w / 2.0)
-    yn = (y - (h - 1) / 2.0) / (h / 2.0)
+    xn, yn = _normalised(x, y, shape)
     # powers by repeated products: numpy's generic pow is ~20x slower than a multiply
     xp, yp = [np.ones_like(xn), xn], [np.ones_like(yn), yn]
     for _ in range(_FLAT_DEGREE - 1):
@@ -85,9 +89,7 @@ class Illumination:
 
     def at(self, x: FloatArray, y: FloatArray) -> FloatArray:
         """The illumination at image points (any shape), by Horner's scheme in x and y."""
-        h, w = self.shape
-        xn = (x - (w - 1) / 2.0) / (w / 2.0)
-        yn = (y - (h - 1) / 2.0) / (h / 2.0)
+        xn, yn = _normalised(x, y, self.shape)
         return np.asarray(polyval2d(xn, yn, self._grid), dtype=np.float64)
 
     @cached_property
@@ -190,10 +192,7 @@ def coarse_cross(gray: Gray8, params: MeasureParams) -> CoarseCross:
             "and in focus?)"
         )
     if abs(rotation_deg) > max_rot:
-        raise GeometryError(
-            f"the cross appears rotated by {rotation_deg:.0f} deg; this mode measures within "
-            f"+/-{max_rot:.0f} deg: turn the artifact (or the camera) toward the image axes"
-        )
+        raise rotated_too_far(rotation_deg, max_rot)
     theta = math.radians(rotation_deg)
     xf, yf = _centred_grid(small.shape, (h, w))
     c, sn = math.cos(theta), math.sin(theta)

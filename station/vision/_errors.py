@@ -72,3 +72,13 @@ def describe_missing(problems: Mapping[Edge, str]) -> str:
     if len(missing) == 4:
         hint = " Is the crossed-groove artifact in view and in focus?"
     return f"found {4 - len(missing)} of 4 edges: {', '.join(parts)} ({details}).{hint}"
+
+
+def rotated_too_far(
+    rotation_deg: float, limit_deg: float, *, seen: str = "appears", digits: int = 0
+) -> GeometryError:
+    """The error for a cross turned beyond the mode's range, saying what to do."""
+    return GeometryError(
+        f"the cross {seen} rotated by {rotation_deg:.{digits}f} deg; this mode measures within "
+        f"+/-{limit_deg:.0f} deg: turn the artifact (or the camera) toward the image axes"
+    )

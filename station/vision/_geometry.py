@@ -9,7 +9,7 @@ import numpy as np
 import numpy.typing as npt
 
 from station.vision._edges import Edge
-from station.vision._errors import GeometryError
+from station.vision._errors import GeometryError, rotated_too_far
 
 FloatArray = npt.NDArray[np.float64]
 Line = tuple[float, float, float]
@@ -111,10 +111,7 @@ def check_cross(
     rotation = float(np.mean(list(angles.values())))
     worst = max(angles.values(), key=abs)
     if abs(worst) > max_rotation_deg:
-        raise GeometryError(
-            f"the cross is rotated by {worst:.1f} deg; this mode measures within "
-            f"+/-{max_rotation_deg:.0f} deg: turn the artifact (or the camera) toward the image axes"
-        )
+        raise rotated_too_far(worst, max_rotation_deg, seen="is", digits=1)
     h_dir = (angles["top"] + angles["bottom"]) / 2.0
     v_dir = (angles["left"] + angles["right"]) / 2.0
     if abs(h_dir - v_dir) > 10.0:

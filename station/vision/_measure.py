@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from station.vision._edges import EDGES
-from station.vision._errors import EdgeNotFoundError, GeometryError
+from station.vision._errors import EdgeNotFoundError, GeometryError, rotated_too_far
 from station.vision._geometry import centre, check_cross, square_homography, vertices
 from station.vision._image import check_quality, to_gray8
 from station.vision._orientation import dominant_rotation_deg
@@ -70,8 +70,5 @@ def _explain_rotation(gray: np.ndarray, max_rotation_deg: float) -> GeometryErro
     """A GeometryError when edges were missed because the cross is turned beyond the mode's range."""
     rotation, strength = dominant_rotation_deg(gray)
     if strength > 0.3 and abs(rotation) > max_rotation_deg:
-        return GeometryError(
-            f"the cross appears rotated by {rotation:.0f} deg; this mode measures within "
-            f"+/-{max_rotation_deg:.0f} deg: turn the artifact (or the camera) toward the image axes"
-        )
+        return rotated_too_far(rotation, max_rotation_deg)
     return None

@@ -34,7 +34,7 @@ import numpy.typing as npt
 from station.vision._coarse import CoarseCross, Illumination, coarse_cross, fast_median
 from station.vision._edges import EDGES, Edge
 from station.vision._errors import EdgeNotFoundError, describe_missing
-from station.vision._geometry import VERTICAL, Line, intersect
+from station.vision._geometry import VERTICAL, Line, intersect, normal_form
 from station.vision._image import Gray8
 from station.vision._params import MeasureParams
 from station.vision._result import EdgeFit
@@ -79,10 +79,7 @@ def _crossing_extent(models: dict[Edge, _EdgeModel]) -> dict[Edge, tuple[float, 
 
 
 def _line_of(model: _EdgeModel, *, vertical: bool) -> Line:
-    norm = math.hypot(1.0, model.slope)
-    if vertical:
-        return (1.0 / norm, -model.slope / norm, model.intercept / norm)
-    return (-model.slope / norm, 1.0 / norm, model.intercept / norm)
+    return normal_form(model.slope, model.intercept, vertical=vertical)
 
 
 @lru_cache(maxsize=16)
