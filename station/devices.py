@@ -59,6 +59,38 @@ class MotionStoppedError(DeviceError):
     """A motion was stopped (``stop()``) before reaching its target; re-read the position before going on."""
 
 
+# --------------------------------------------------------------------------- lifecycle and identity
+
+
+@runtime_checkable
+class Connectable(Protocol):
+    """Every device's lifecycle: a factory builds it unconnected; ``connect`` opens it, ``close`` releases it.
+
+    ``connect`` on a connected device does nothing; ``close`` is safe to call twice. The session runner
+    connects all devices and closes them in reverse order in one place.
+    """
+
+    def connect(self) -> None:
+        """Open the link (port, stream, prompt channel) and read the device's state."""
+
+    def close(self) -> None:
+        """Release the device; safe to call twice."""
+
+
+@dataclass(frozen=True)
+class DeviceIdentity:
+    """Who a device is, recorded with every session: each field ``None`` where the device cannot say.
+
+    ``model`` (e.g. the arm type from armstat, the camera's model name), ``serial`` (serial number or
+    device id), ``port`` (serial port, video node, camera address), ``firmware`` (version text).
+    """
+
+    model: str | None = None
+    serial: str | None = None
+    port: str | None = None
+    firmware: str | None = None
+
+
 # --------------------------------------------------------------------------- robot
 
 JOINT_COUNT = 6
@@ -220,7 +252,7 @@ class Camera(Protocol):
     small protocols below (``ExposureAdjustable`` ...); check with ``isinstance``.
     """
 
-    def open(self) -> None:
+    def connect(self) -> None:
         """Open the device and start streaming; a second call does nothing."""
 
     def close(self) -> None:
@@ -234,6 +266,9 @@ class Camera(Protocol):
 
     def status(self) -> CameraStatus:
         """Size, format and settings as the device reports them."""
+
+    def identity(self) -> DeviceIdentity:
+        """Model, serial or device id, address, firmware where the device reports them."""
 
 
 @runtime_checkable
@@ -347,6 +382,21 @@ class XYTable(Protocol):
     answer within ``timeout_s`` ``DeviceTimeoutError``.
     """
 
+    def connect(self) -> None:
+        """Make the table ready (for the manual table: nothing to open; it checks its prompt channel)."""
+
+    def close(self) -> None:
+        """Release the table (withdraw any open prompt of its own); safe to call twice."""
+
+    def identity(self) -> DeviceIdentity:
+        """What the table is (model, travel), as configured."""
+
+    def check_target(self, x_mm: float, y_mm: float) -> None:
+        """Raise what ``move_to(x_mm, y_mm)`` would raise before acting (travel, non-finite values).
+
+        No side effects: nothing is asked, nothing moves. Pre-flight checks a whole pattern with it.
+        """
+
     def position(self) -> TablePosition:
         """The last confirmed position (DeviceError if none was confirmed yet)."""
 
@@ -359,10 +409,12 @@ __all__ = [
     "PIXEL_FORMATS",
     "Camera",
     "CameraStatus",
+    "Connectable",
     "ControllerError",
     "DeviceBusyError",
     "DeviceConnectionError",
     "DeviceError",
+    "DeviceIdentity",
     "DeviceProtocolError",
     "DeviceTimeoutError",
     "ExposureAdjustable",
