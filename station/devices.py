@@ -169,6 +169,16 @@ class Robot(Protocol):
     def wait_settled(self, timeout_s: float | None = None) -> None:
         """Block until the arm has stopped moving (raise DeviceTimeoutError after ``timeout_s``)."""
 
+    def check_move(self, target_deg: Sequence[float], *, start_deg: Sequence[float] | None = None) -> None:
+        """Raise exactly what a move from ``start_deg`` (None: the last commanded position) to
+        ``target_deg`` would raise (limits, step, keep-out), with no I/O: pre-flight checks chains of moves."""
+
+    def clear_stop(self) -> None:
+        """Release the latched stop: motions are accepted again (``connect`` does not clear it)."""
+
+    def identity(self) -> DeviceIdentity:
+        """Arm type, controller port and firmware where the controller reports them."""
+
 
 # --------------------------------------------------------------------------- camera
 
