@@ -18,6 +18,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
+from station._pydantic import problems as describe
 from station.devices import Camera, Robot, XYTable
 from station.prompts import PromptBroker
 
@@ -176,10 +177,7 @@ def load_config(path: str | Path) -> StationConfig:
     try:
         config = StationConfig.model_validate(raw)
     except ValidationError as exc:
-        problems = "; ".join(
-            f"{'.'.join(str(x) for x in e['loc']) or '(top level)'}: {e['msg']}"
-            for e in exc.errors(include_url=False)
-        )
+        problems = describe(exc, "(top level)")
         raise ConfigurationError(f"{p}: {problems}") from exc
     base = p.resolve().parent
     updates: dict[str, Any] = {}

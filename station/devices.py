@@ -171,7 +171,8 @@ class Robot(Protocol):
 
     def check_move(self, target_deg: Sequence[float], *, start_deg: Sequence[float] | None = None) -> None:
         """Raise exactly what a move from ``start_deg`` (None: the last commanded position) to
-        ``target_deg`` would raise (limits, step, keep-out), with no I/O: pre-flight checks chains of moves."""
+        ``target_deg`` would raise (limits, step, keep-out), with no I/O (pre-flight checks chains of
+        moves with it)."""
 
     def clear_stop(self) -> None:
         """Release the latched stop: motions are accepted again (``connect`` does not clear it)."""

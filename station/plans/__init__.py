@@ -24,6 +24,8 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 from pydantic import BaseModel
 
+from station._pydantic import problems as describe
+
 if TYPE_CHECKING:
     from station.record import Record
     from station.vision import MeasureParams
@@ -129,7 +131,7 @@ class Plan(Protocol):
     def name(self) -> str: ...
 
     @property
-    def Params(self) -> type[BaseModel]: ...
+    def Params(self) -> type[BaseModel]: ...  # noqa: N802 - a class, named as one
 
     @property
     def needs(self) -> frozenset[str]:
@@ -164,10 +166,7 @@ def parse_params(plan: Plan, values: Mapping[str, Any]) -> BaseModel:
     try:
         return plan.Params.model_validate(dict(values))
     except ValidationError as exc:
-        problems = "; ".join(
-            f"{'.'.join(str(x) for x in e['loc']) or plan.name}: {e['msg']}"
-            for e in exc.errors(include_url=False)
-        )
+        problems = describe(exc, plan.name)
         raise PlanError(f"{plan.name} parameters: {problems}") from exc
 
 
