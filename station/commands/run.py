@@ -126,7 +126,7 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         parser.error(str(exc))
     progress = _Progress()
     runners: list[SessionRunner] = []
-    signals = {signal.SIGINT: 130, signal.SIGTERM: 143}
+    signals: dict[int, int] = {signal.SIGINT: 130, signal.SIGTERM: 143}
     received: list[int] = []
 
     def on_signal(signum: int, frame: object) -> None:
@@ -172,14 +172,14 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
             signal.signal(s, handler)
     if error_box:
         progress.close()
-        exc = error_box[0]
-        if isinstance(exc, PlanError | ConfigurationError | ScaleCalibrationError):
-            print(f"station run: {exc}", file=sys.stderr)
+        failure = error_box[0]
+        if isinstance(failure, PlanError | ConfigurationError | ScaleCalibrationError):
+            print(f"station run: {failure}", file=sys.stderr)
             return 2
-        if isinstance(exc, SessionLockError | SessionError | RecordError | DeviceError):
-            print(f"station run: {exc}", file=sys.stderr)
+        if isinstance(failure, SessionLockError | SessionError | RecordError | DeviceError):
+            print(f"station run: {failure}", file=sys.stderr)
             return signals[received[0]] if received else 1
-        raise exc
+        raise failure
     outcome = outcome_box[0]
     progress.close()
     if args.json:

@@ -283,8 +283,13 @@ def draw_cross(
     half = groove_width_px / 2.0
     s = blur_px * math.sqrt(2.0)
 
+    # The band profile is tabulated finely once and interpolated (np.interp is ~50x cheaper than erf).
+    reach = half + 8.0 * s
+    table_d = np.linspace(-reach, reach, int(2 * reach / 0.005) + 1)
+    table_b = 0.5 * (erf((half - table_d) / s) - erf((-half - table_d) / s))
+
     def band(d: FloatArray) -> FloatArray:
-        return 0.5 * (erf((half - d) / s) - erf((-half - d) / s))
+        return np.interp(d, table_d, table_b, left=0.0, right=0.0)
 
     groove = np.maximum(band(v), band(u))
     image = 200.0 - 150.0 * groove
