@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import threading
 import time
 from typing import Any
@@ -35,7 +36,8 @@ def test_repeatability_on_fakes_captures_every_cycle_and_computes_rp(
     sid = r.session_id
     assert sid is not None
     row = record.get_session(sid)
-    assert row.state == "succeeded" and row.error is None
+    assert row.state == "succeeded"
+    assert row.error is None
     caps = record.captures(sid)
     assert len(caps) == 2 * (1 + 4)  # a reference and four cycles per test
     assert [c.meta["role"] for c in caps[:5]] == ["reference", "cycle", "cycle", "cycle", "cycle"]
@@ -57,7 +59,7 @@ def test_events_have_per_session_sequence_and_increasing_ids(record: Record, fak
     r.run()
     events = record.events(r.session_id)
     assert [e.seq for e in events] == list(range(1, len(events) + 1))
-    assert all(a.id < b.id for a, b in zip(events, events[1:], strict=False))
+    assert all(a.id < b.id for a, b in itertools.pairwise(events))
     assert [e.id for e in log.events] == [e.id for e in events]
     kinds = {e.type for e in events}
     assert {"state", "step_started", "step_finished", "image_captured", "measurement", "preflight"} <= kinds
@@ -68,7 +70,8 @@ def test_validation_on_fakes_compares_with_the_pattern(record: Record, fake: Fak
     assert r.run() is RunnerState.SUCCEEDED
     res = record.get_session(r.session_id).results
     assert res["n_positions"] == 12
-    assert res["mean_um"] < 0.2 and res["max_um"] < 0.5
+    assert res["mean_um"] < 0.2
+    assert res["max_um"] < 0.5
     assert abs(res["scale"] - 1.0) < 0.005
     assert res["scale_calibration"]["session_id"] == r.session_id
     # same-direction approach: an overshoot before the first position and before every backwards step
@@ -86,11 +89,12 @@ def test_direct_approach_moves_once_per_position(record: Record, fake: FakeStati
 
 def test_preflight_reports_every_problem_and_moves_nothing(record: Record) -> None:
     fake = FakeStation(robot=FakeRobot(REF, max_step_deg=5.0))
-    r, log = runner(record, fake, "repeatability", cycles=3, joints=[1, 2], delta_deg=10)
+    r, _log = runner(record, fake, "repeatability", cycles=3, joints=[1, 2], delta_deg=10)
     assert r.run() is RunnerState.FAILED
     row = record.get_session(r.session_id)
     assert "pre-flight found" in (row.error or "")
-    assert "J1" in row.error and "J2" in row.error  # both tests named, at once
+    assert "J1" in row.error
+    assert "J2" in row.error
     fake.robot.assert_not_called("move_joints")
     fake.robot.assert_not_called("set_speed")
     assert record.captures(r.session_id) == []
@@ -101,7 +105,8 @@ def test_preflight_refuses_an_unpowered_arm(record: Record) -> None:
     r, _ = runner(record, fake, "repeatability", cycles=3, joints=[1])
     assert r.run() is RunnerState.FAILED
     error = record.get_session(r.session_id).error or ""
-    assert "power is off" in error and "not homed" in error
+    assert "power is off" in error
+    assert "not homed" in error
     fake.robot.assert_not_called("move_joints")
 
 
@@ -120,7 +125,8 @@ def test_pause_waits_at_a_safe_point_and_resume_continues(record: Record, fake: 
     assert paused.wait(30)
     done_while_paused = r.progress().done
     time.sleep(0.2)
-    assert r.progress().done == done_while_paused and r.state is RunnerState.PAUSED
+    assert r.progress().done == done_while_paused
+    assert r.state is RunnerState.PAUSED
     r.resume()
     thread.join(60)
     assert r.state is RunnerState.SUCCEEDED
@@ -134,8 +140,10 @@ def test_stop_finishes_the_step_and_returns_to_the_reference(record: Record, fak
     sid = r.session_id
     assert fake.robot.calls_of("move_joints")[-1] == (REF,)
     assert [s.state for s in record.steps(sid)] == ["done"] * 3
-    assert fake.robot.connected is False and fake.camera.connected is False
-    assert "stopping" in log.states() and log.states()[-1] == "stopped"
+    assert fake.robot.connected is False
+    assert fake.camera.connected is False
+    assert "stopping" in log.states()
+    assert log.states()[-1] == "stopped"
     assert record.get_session(sid).state == "stopped"
 
 
@@ -173,7 +181,8 @@ def test_controller_error_fails_the_session_and_keeps_the_captures(record: Recor
     fake.robot.assert_called("stop")
     assert log.of("position"), "the position is read again after a motion error"
     steps = record.steps(r.session_id)
-    assert steps[-1].state == "failed" and all(s.state == "done" for s in steps[:-1])
+    assert steps[-1].state == "failed"
+    assert all(s.state == "done" for s in steps[:-1])
     assert len(record.captures(r.session_id)) == len([s for s in steps if s.state == "done"])
 
 
@@ -219,7 +228,8 @@ def test_disk_full_fails_cleanly_without_a_half_written_capture(
     row = record.get_session(r.session_id)
     assert "No space left on device" in (row.error or "")
     caps = record.captures(r.session_id)
-    assert len(caps) == 2 and len(record.measurements(r.session_id)) == 2
+    assert len(caps) == 2
+    assert len(record.measurements(r.session_id)) == 2
     image_dir = record.data_dir / "images" / r.session_id
     assert sorted(p.name for p in image_dir.iterdir()) == sorted(
         p.split("/")[-1] for p in (c.path for c in caps)
