@@ -59,7 +59,7 @@ def _banner(s: Session) -> str:
     verb = "did not succeed" if ended else "has not finished"
     parts = [f"This session {verb}: its state is <b>{_e(s.state)}</b>."]
     if s.error is not None:
-        parts.append(f"Error: <b>{_e(s.error)}</b>")
+        parts.append(f"Error: <b>{_e(s.error)}</b>.")
     if s.state == "interrupted":
         parts.append(f"Resume it with <code>station run --resume {_e(s.id)}</code>.")
     if s.raw_results is None:

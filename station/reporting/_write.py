@@ -91,6 +91,7 @@ def write_report(session: Mapping[str, Any], out_dir: Path) -> ReportFiles:
     embedded: list[tuple[str, str, bytes]] = []
     for nf in figures:
         svg = _render(nf.figure, "svg")
+        nf.figure.set_layout_engine("none")  # laid out by the first rendering; the PNG reuses it
         for fmt, data in (("png", _render(nf.figure, "png")), ("svg", svg)):
             path = out / f"{nf.name}.{fmt}"
             _write_atomic(path, data)
