@@ -9,12 +9,15 @@ as given (PostgreSQL: ``postgresql+psycopg://user:password@host/db``).
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 from typing import Any
 
 import sqlalchemy as sa
 from alembic import command
 from alembic.config import Config
+from alembic.runtime.migration import MigrationContext
+from alembic.script import ScriptDirectory
 from sqlalchemy import event
 
 from station.record._errors import RecordError
@@ -75,8 +78,15 @@ def _config(connection: sa.Connection) -> Config:
 
 
 def upgrade(engine: sa.Engine) -> None:
-    """Bring the database to the migrations' head, one process at a time."""
+    """Bring the database to the migrations' head, one process at a time.
+
+    A record already at head is only read (no write lock), so opening one never waits on a writer.
+    """
     try:
+        with engine.connect() as conn:
+            current = MigrationContext.configure(conn).get_current_revision()
+        if current == head_revision():
+            return
         with engine.connect() as conn:
             conn = conn.execution_options(**{BEGIN_OPTION: "IMMEDIATE"})
             with conn.begin():
@@ -87,12 +97,12 @@ def upgrade(engine: sa.Engine) -> None:
         raise RecordError(f"cannot open the record at {redact(engine.url)}: {exc.orig}") from exc
 
 
+@functools.cache
 def head_revision() -> str:
     """The newest migration's revision id."""
-    from alembic.script import ScriptDirectory
-
-    with sa.create_engine("sqlite://").connect() as conn:
-        head = ScriptDirectory.from_config(_config(conn)).get_current_head()
+    config = Config()
+    config.set_main_option("script_location", str(MIGRATIONS))
+    head = ScriptDirectory.from_config(config).get_current_head()
     if head is None:
         raise RecordError(f"no migrations found in {MIGRATIONS}: the installation is incomplete")
     return head
