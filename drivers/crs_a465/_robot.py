@@ -273,7 +273,9 @@ class CrsA465:
                 self._server_lines(server, text)
                 lines = [line for line in lines if line not in server]
         try:
-            raise_for_error(text, lines)
+            raise_for_error(
+                text, [x for x in lines if not POINT_OF_CONTROL.match(x.strip())] if watch else lines
+            )
         except CrsControllerError as exc:
             self._last_error = exc.controller_text
             raise
