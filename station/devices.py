@@ -56,7 +56,11 @@ class ControllerError(DeviceError):
 
 
 class MotionStoppedError(DeviceError):
-    """A motion was stopped (``stop()``) before reaching its target; re-read the position before going on."""
+    """A motion was stopped (``stop()``, or a halt at the controller) before reaching its target.
+
+    ``stop()`` latches: every motion raises this until ``clear_stop()``. Re-read the position before
+    going on.
+    """
 
 
 # --------------------------------------------------------------------------- lifecycle and identity
@@ -109,6 +113,8 @@ class RobotStatus:
     moving: bool | None
     speed_pct: float | None
     last_error: str | None = None
+    calibrated: bool | None = None
+    arm_type: str | None = None
 
 
 @dataclass(frozen=True)
@@ -125,15 +131,30 @@ class RobotPosition:
     world_mm_deg: tuple[float, ...] | None = None
 
 
+@dataclass(frozen=True)
+class DeviceIdentity:
+    """What a device says of itself; a part it cannot report is ``None`` (never a guess).
+
+    ``model`` is the device's model as it reports it, ``serial`` its serial number, ``port`` where it is
+    connected (a serial port, a camera id), ``firmware`` its firmware version.
+    """
+
+    model: str | None
+    serial: str | None
+    port: str | None
+    firmware: str | None
+
+
 @runtime_checkable
 class Robot(Protocol):
     """A six-joint arm moved in joint space (degrees).
 
     Every motion is checked on the host (joint limits, maximum step, keep-out) before anything is
-    sent: a rejected motion raises ``MotionRejectedError`` and leaves the arm untouched. Motions
-    return when the controller has accepted them; ``wait_settled`` blocks until the arm is still.
-    Controller refusals raise ``ControllerError`` subclasses; a lost link ``DeviceConnectionError``
-    (``connect()`` again re-reads the arm state).
+    sent: a rejected motion raises ``MotionRejectedError`` and leaves the arm untouched; ``check_move``
+    runs the same checks without any I/O. Motions return when the arm has arrived; ``wait_settled``
+    blocks until an arm moved by someone else is still. Controller refusals raise ``ControllerError``
+    subclasses; a lost link ``DeviceConnectionError`` (``connect()`` again re-reads the arm state).
+    ``stop()`` latches: until ``clear_stop()``, every motion raises ``MotionStoppedError``.
     """
 
     def connect(self) -> None:
@@ -163,8 +184,21 @@ class Robot(Protocol):
     def set_speed(self, percent: float) -> None:
         """Set the speed override, in percent of maximum."""
 
+    def check_move(self, target_deg: Sequence[float], *, start_deg: Sequence[float] | None = None) -> None:
+        """Raise what ``move_joints(target_deg)`` from ``start_deg`` would raise on the host, with no I/O.
+
+        ``start_deg`` ``None``: the last commanded position. Limits, step and keep-out only: a chain of
+        moves can be checked before the first is sent.
+        """
+
     def stop(self) -> None:
-        """Stop any motion now (callable from another thread while a motion is in progress)."""
+        """Stop any motion now, best effort (callable from another thread); latches until ``clear_stop``."""
+
+    def clear_stop(self) -> None:
+        """Release the latch set by ``stop()``: motions are accepted again."""
+
+    def identity(self) -> DeviceIdentity:
+        """Model, serial, port and firmware as far as the device reports them."""
 
     def wait_settled(self, timeout_s: float | None = None) -> None:
         """Block until the arm has stopped moving (raise DeviceTimeoutError after ``timeout_s``)."""
