@@ -131,20 +131,6 @@ class RobotPosition:
     world_mm_deg: tuple[float, ...] | None = None
 
 
-@dataclass(frozen=True)
-class DeviceIdentity:
-    """What a device says of itself; a part it cannot report is ``None`` (never a guess).
-
-    ``model`` is the device's model as it reports it, ``serial`` its serial number, ``port`` where it is
-    connected (a serial port, a camera id), ``firmware`` its firmware version.
-    """
-
-    model: str | None
-    serial: str | None
-    port: str | None
-    firmware: str | None
-
-
 @runtime_checkable
 class Robot(Protocol):
     """A six-joint arm moved in joint space (degrees).
@@ -202,17 +188,6 @@ class Robot(Protocol):
 
     def wait_settled(self, timeout_s: float | None = None) -> None:
         """Block until the arm has stopped moving (raise DeviceTimeoutError after ``timeout_s``)."""
-
-    def check_move(self, target_deg: Sequence[float], *, start_deg: Sequence[float] | None = None) -> None:
-        """Raise exactly what a move from ``start_deg`` (None: the last commanded position) to
-        ``target_deg`` would raise (limits, step, keep-out), with no I/O (pre-flight checks chains of
-        moves with it)."""
-
-    def clear_stop(self) -> None:
-        """Release the latched stop: motions are accepted again (``connect`` does not clear it)."""
-
-    def identity(self) -> DeviceIdentity:
-        """Arm type, controller port and firmware where the controller reports them."""
 
 
 # --------------------------------------------------------------------------- camera
