@@ -126,7 +126,7 @@ def build_sim_station(
             camera=CameraConfig(driver="sim", options={"seed": seed}),
             table=TableConfig(driver="manual", options={"origin_in": SIM_TABLE_ORIGIN_IN}, prompts="api"),
         )
-        robot: Robot = build("robot", "crs_a465", port=sim.port, safety=safety, connect=False)
+        robot: Robot = build("robot", "crs_a465", port=sim.port, safety=safety)
         table: XYTable = build("table", "manual", broker=sim.broker, origin_in=SIM_TABLE_ORIGIN_IN)
     except BaseException:
         sim.close()

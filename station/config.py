@@ -7,6 +7,7 @@ so that the core never imports them (architecture.md, direction of dependencies)
 
 from __future__ import annotations
 
+import inspect
 import logging
 import math
 import tomllib
@@ -57,7 +58,14 @@ def factory(kind: str, name: str) -> Callable[..., Any]:
 def build(kind: str, name: str, /, **options: Any) -> Any:
     """Build the device ``KIND.NAME`` with keyword ``options``."""
     log.debug("building %s.%s with %s", kind, name, sorted(options))
-    return factory(kind, name)(**options)
+    make = factory(kind, name)
+    try:
+        inspect.signature(make).bind(**options)
+    except TypeError as exc:
+        raise ConfigurationError(f"{kind}.{name}: bad options {sorted(options)}: {exc}") from exc
+    except ValueError:  # no signature to check (a builtin): let the call say it
+        pass
+    return make(**options)
 
 
 # --------------------------------------------------------------------------- the station configuration

@@ -65,6 +65,7 @@ def register(sub: SubParsers) -> None:
     )
     p.add_argument("-j", "--jobs", type=int, default=1, help="worker processes for sweep and reanalyse")
     p.add_argument("--json", action="store_true", help="print the outcome as one JSON object (last line)")
+    p.add_argument("--report", action="store_true", help="write the session's report and print where")
     add_record_options(p)
     p.set_defaults(func=lambda args: run(p, args))
 
@@ -182,6 +183,14 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         raise failure
     outcome = outcome_box[0]
     progress.close()
+    if args.report:
+        from station.commands.sessions import write_session_report
+
+        try:
+            files = write_session_report(outcome.id, args.data, args.database)
+            print(f"report: {files.html}", file=sys.stderr if args.json else sys.stdout)
+        except (RecordError, OSError) as exc:
+            print(f"station run: the report could not be written: {exc}", file=sys.stderr)
     if args.json:
         print(json.dumps(outcome.to_json()))
     else:

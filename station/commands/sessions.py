@@ -6,12 +6,15 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from station.commands import SubParsers
 from station.commands.run import add_record_options
 from station.record import Record, RecordError, SessionRow, lock_holder
 from station.session import open_record
+
+if TYPE_CHECKING:
+    from station.reporting import ReportFiles
 
 
 def session_json(row: SessionRow) -> dict[str, Any]:
@@ -103,17 +106,30 @@ def run_sessions(args: argparse.Namespace) -> int:
     return 0
 
 
+def report_document(row: SessionRow) -> dict[str, Any]:
+    """What ``station.reporting.write_report`` takes: the session object with identities and software."""
+    return {**session_json(row), "identities": row.identities, "software": row.software}
+
+
+def write_session_report(
+    session: str, data: str | Path | None, database: str | None, out: str | Path | None = None
+) -> ReportFiles:
+    """Write session ``session``'s report (default folder: DATA/reports/ID)."""
+    from station.reporting import write_report
+
+    with open_record(data, database) as record:
+        row = record.get_session(session)
+        folder = Path(out) if out else Path(record.data_dir) / "reports" / row.id
+        return write_report(report_document(row), folder)
+
+
 def run_report(args: argparse.Namespace) -> int:
-    from station.reporting import text_tables, write_report
+    from station.reporting import text_tables
 
     try:
+        files = write_session_report(args.session, args.data, args.database, args.out)
         with _open(args) as record:
-            row = record.get_session(args.session)
-            out = Path(args.out) if args.out else Path(record.data_dir) / "reports" / row.id
-            doc = session_json(row)
-            doc["identities"] = row.identities
-            doc["software"] = row.software
-            files = write_report(doc, out)
+            doc = report_document(record.get_session(args.session))
     except (RecordError, OSError) as exc:
         print(f"station report: {exc}", file=sys.stderr)
         return 1
