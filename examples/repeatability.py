@@ -33,7 +33,7 @@ def main() -> int:
     args = parser.parse_args()
 
     runners: list[SessionRunner] = []
-    outcome_box = []
+    outcome_box: list[SessionOutcome] = []
 
     def work() -> None:
         outcome_box.append(
@@ -47,7 +47,11 @@ def main() -> int:
             )
         )
 
-    signal.signal(signal.SIGINT, lambda *_: [r.abort("Ctrl-C in the example script") for r in runners])
+    def on_interrupt(signum: int, frame: object) -> None:
+        for r in runners:
+            r.abort("Ctrl-C in the example script")
+
+    signal.signal(signal.SIGINT, on_interrupt)
     worker = threading.Thread(target=work)
     worker.start()
     while worker.is_alive():
