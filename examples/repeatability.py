@@ -18,7 +18,7 @@ import threading
 
 from station.plans.repeatability import SEED_TABLE2_MM
 from station.runner import SessionRunner
-from station.session import run_session
+from station.session import SessionOutcome, run_session
 
 
 def main() -> int:
