@@ -303,7 +303,13 @@ class Record:
 
     # -- events ----------------------------------------------------------------------------------
     def add_event(self, session_id: str, type: str, data: Mapping[str, Any]) -> EventRow:
-        """Append an event; its ``seq`` is the session's next, its ``id`` the station-wide next."""
+        """Append an event; its ``seq`` is the session's next, its ``id`` the station-wide next.
+
+        On SQLite commits are serialised, so ids appear to readers in increasing order and polling
+        with ``events(after_id=...)`` misses none. On a server shared by several stations, ids are
+        drawn when rows are inserted and two stations' commits may land out of order: a reader that
+        follows several sessions there should poll per session and use ``seq``.
+        """
         value = json_object(data, "data")
         now = self._now()
         with self._write() as conn:
