@@ -181,15 +181,25 @@ class Record:
 
     @contextlib.contextmanager
     def _write(self) -> Iterator[sa.Connection]:
-        with self._engine.connect() as conn:
-            conn = conn.execution_options(**{BEGIN_OPTION: "IMMEDIATE"})
-            with conn.begin():
-                yield conn
+        """One write transaction; a database failure (disk full, lost server ...) is a RecordError."""
+        try:
+            with self._engine.connect() as conn:
+                conn = conn.execution_options(**{BEGIN_OPTION: "IMMEDIATE"})
+                with conn.begin():
+                    yield conn
+        except sa.exc.DBAPIError as exc:
+            raise RecordError(
+                f"cannot write to the record at {self.url}: {exc.orig}; nothing of this change was "
+                "recorded (check free space and the database server)"
+            ) from exc
 
     @contextlib.contextmanager
     def _read(self) -> Iterator[sa.Connection]:
-        with self._engine.connect() as conn:
-            yield conn
+        try:
+            with self._engine.connect() as conn:
+                yield conn
+        except sa.exc.DBAPIError as exc:
+            raise RecordError(f"cannot read the record at {self.url}: {exc.orig}") from exc
 
     def _now(self) -> datetime:
         now = self._clock()
@@ -303,7 +313,13 @@ class Record:
 
     # -- events ----------------------------------------------------------------------------------
     def add_event(self, session_id: str, type: str, data: Mapping[str, Any]) -> EventRow:
-        """Append an event; its ``seq`` is the session's next, its ``id`` the station-wide next."""
+        """Append an event; its ``seq`` is the session's next, its ``id`` the station-wide next.
+
+        On SQLite commits are serialised, so ids appear to readers in increasing order and polling
+        with ``events(after_id=...)`` misses none. On a server shared by several stations, ids are
+        drawn when rows are inserted and two stations' commits may land out of order: a reader that
+        follows several sessions there should poll per session and use ``seq``.
+        """
         value = json_object(data, "data")
         now = self._now()
         with self._write() as conn:
@@ -468,9 +484,9 @@ class Record:
         try:
             with self._write() as conn:
                 capture_id = new_id(conn.execute(captures.insert().values(**values)))
-        except sa.exc.SQLAlchemyError as exc:
-            path.unlink(missing_ok=True)
-            raise RecordError(f"cannot record capture {rel} in {self.url}: {exc}") from exc
+        except RecordError:
+            path.unlink(missing_ok=True)  # no row names it: an orphan would only mislead
+            raise
         return CaptureRow(id=capture_id, **values)
 
     def captures(self, session_id: str, *, step_index: int | None = None) -> list[CaptureRow]:
