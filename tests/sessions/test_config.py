@@ -96,10 +96,10 @@ def test_devices_are_built_unconnected_and_unknown_drivers_are_named(tmp_path: P
     assert devices.table is not None
     assert devices.identities()["camera"]["port"] == "/dev/video9"
     bad = load_config(write(tmp_path, GOOD.replace('driver = "v4l2"', 'driver = "usb3"')))
-    with pytest.raises(ConfigurationError, match="no camera named 'usb3'; available: .*v4l2"):
+    with pytest.raises(ConfigurationError, match=r"no camera named 'usb3'; available: .*v4l2"):
         open_station(bad)
     wrong = load_config(
         write(tmp_path, GOOD.replace('options = { device = "/dev/video9" }', "options = { dev = 1 }"))
     )
-    with pytest.raises(ConfigurationError, match="camera.v4l2: bad options"):
+    with pytest.raises(ConfigurationError, match=r"camera\.v4l2: bad options"):
         open_station(wrong)
