@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import math
 import threading
 from collections.abc import Mapping
 
@@ -97,6 +98,11 @@ class ManualXYTable:
         the operator cancels, DeviceTimeoutError if nobody answers within ``timeout_s`` (the prompt is
         then withdrawn), DeviceError if another prompt is open.
         """
+        for label, value in (("x_mm", x_mm), ("y_mm", y_mm), ("timeout_s", timeout_s)):
+            if value is not None and not math.isfinite(value):
+                raise MotionRejectedError(f"{self._name}: {label} must be a finite number, got {value!r}")
+        if timeout_s is not None and timeout_s <= 0:
+            raise MotionRejectedError(f"{self._name}: timeout_s must be above 0 s, got {timeout_s!r}")
         x_in, y_in = self.readings_for(x_mm, y_mm)
         self._check_travel({X_FIELD: x_in, Y_FIELD: y_in}, what=f"target ({x_mm:g}, {y_mm:g}) mm")
         with self._lock:
