@@ -146,25 +146,18 @@ def measure_files(
     workers = min(jobs, len(items))
     todo = deque(items)
     while todo:
-        broken = False
+        window: deque[tuple[str, Future[FileResult]]] = deque()
         with ProcessPoolExecutor(max_workers=workers) as pool:
-            window: deque[tuple[str, Future[FileResult]]] = deque()
-            while todo or window:
-                while todo and len(window) < 2 * workers:
-                    path = todo.popleft()
-                    window.append((path, pool.submit(measure_one, path, params, limits)))
-                path, future = window[0]
-                try:
-                    result = future.result()
-                except BrokenProcessPool:
-                    broken = True
-                    break
-                window.popleft()
-                yield emit(result)
-        if broken:
-            log.warning(
-                "a worker process died; measuring the %d files it may have held one by one", len(window)
-            )
-            for path, future in window:
-                done = future.done() and not future.cancelled() and future.exception() is None
-                yield emit(future.result() if done else _alone(path, params, limits, measure_one))
+            try:
+                while todo or window:
+                    while todo and len(window) < 2 * workers:
+                        window.append((todo[0], pool.submit(measure_one, todo[0], params, limits)))
+                        todo.popleft()
+                    result = window[0][1].result()
+                    window.popleft()
+                    yield emit(result)
+            except BrokenProcessPool:
+                log.warning("a worker process died; measuring the %d files in flight one by one", len(window))
+        for path, future in window:
+            done = future.done() and not future.cancelled() and future.exception() is None
+            yield emit(future.result() if done else _alone(path, params, limits, measure_one))
