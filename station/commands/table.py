@@ -36,12 +36,18 @@ def register(sub: SubParsers) -> None:
     move = tsub.add_parser("move", help="move to X_MM Y_MM")
     move.add_argument("x_mm", type=finite_float("X_MM"), metavar="X_MM")
     move.add_argument("y_mm", type=finite_float("Y_MM"), metavar="Y_MM")
-    p.set_defaults(func=run)
+    p.set_defaults(func=lambda args: run(args, parser=move))
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace, parser: argparse.ArgumentParser | None = None) -> int:
     # every input was checked by argparse (finite numbers, exit 2); the travel is checked by the
     # table before it raises any prompt (exit 1)
+    for name in ("x_mm", "y_mm"):
+        if not isinstance(getattr(args, name), float):  # argparse skips ``type`` after a second "--"
+            message = f"{name.upper()} must be a finite number, got {getattr(args, name)!r}"
+            if parser is None:
+                raise SystemExit(f"station table: {message}")
+            parser.error(message)
     broker = PromptBroker()
 
     def show(event: PromptEvent) -> None:
