@@ -10,7 +10,8 @@ from tqdm import tqdm
 
 from station.batch import FileResult, default_jobs, measure_files
 from station.commands import SubParsers
-from station.commands._common import add_measure_options, params_from_args
+from station.commands._common import add_measure_options, finite_float, params_from_args
+from station.imageio import DEFAULT_MAX_BYTES, DEFAULT_MAX_PIXELS, ImageLimits
 from station.report import measurement_rows
 
 
@@ -23,17 +24,41 @@ def register(sub: SubParsers) -> None:
     )
     p.add_argument("images", nargs="+", metavar="IMAGE")
     p.add_argument("--json", action="store_true", help="one JSON object per image per line (stdout)")
+    p.add_argument(
+        "--camera-model",
+        metavar="FILE",
+        default=None,
+        help="correct lens distortion (precise mode): OpenCV camera matrix and distortion coefficients "
+        "(JSON, or the YAML/XML cv2.FileStorage writes)",
+    )
+    p.add_argument(
+        "--max-file-mb",
+        type=finite_float("--max-file-mb", positive=True),
+        default=DEFAULT_MAX_BYTES / 2**20,
+        metavar="MB",
+        help=f"refuse image files larger than this (MiB; default {DEFAULT_MAX_BYTES // 2**20})",
+    )
+    p.add_argument(
+        "--max-megapixels",
+        type=finite_float("--max-megapixels", positive=True),
+        default=DEFAULT_MAX_PIXELS / 1e6,
+        metavar="MPX",
+        help=f"refuse images whose header declares more pixels (default {DEFAULT_MAX_PIXELS / 1e6:g} Mpx)",
+    )
     add_measure_options(p)
     p.set_defaults(func=lambda args: run(p, args))
 
 
 def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     params = params_from_args(parser, args)
+    limits = ImageLimits(
+        max_bytes=max(1, int(args.max_file_mb * 2**20)), max_pixels=max(1, int(args.max_megapixels * 1e6))
+    )
     jobs = args.jobs if args.jobs is not None else default_jobs()
     results: list[FileResult] = []
     # progress on stderr, shown only on a terminal (tqdm's disable=None)
     bar = tqdm(total=len(args.images), unit="img", file=sys.stderr, disable=None, leave=False)
-    for result in measure_files(args.images, params, jobs=jobs):
+    for result in measure_files(args.images, params, jobs=jobs, limits=limits):
         bar.update()
         results.append(result)
         if not result.ok:
