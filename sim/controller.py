@@ -411,11 +411,9 @@ class ControllerTwin:
         if due is None or time.monotonic() < due[0]:
             return False
         self._scheduled = None
-        if self.arm.moving():
-            self.arm.stop()
-            self._write(f"{SERVER}: {due[1]} (error code 0x{0x7000 + len(due[1]):x})\r\n")
-            return True
-        return False
+        self.arm.stop()  # (when the twin fires late, the motion may have ended already)
+        self._write(f"{SERVER}: {due[1]} (error code 0x{0x7000 + len(due[1]):x})\r\n")
+        return True
 
     # ---------------------------------------------------------------- server
 
