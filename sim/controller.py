@@ -15,6 +15,7 @@ Start one in-process::
 
     with start_twin(time_scale=100, seed=1) as twin:
         robot = station.config.build("robot", "crs_a465", port=twin.port)
+        robot.connect()
 
 or as a process shared by several programs: ``station sim controller`` prints the port path.
 """
