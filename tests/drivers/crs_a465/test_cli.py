@@ -113,7 +113,9 @@ def test_joint_returns_only_once_the_arm_has_arrived_on_a_firmware_like_controll
         ("--stall-timeout", "nan", "--stall-timeout: expected a finite number, got 'nan'"),
     ],
 )
-def test_a_bad_option_value_exits_2_with_one_line_before_connecting(capsys, make_twin, option, value, message):
+def test_a_bad_option_value_exits_2_with_one_line_before_connecting(
+    capsys, make_twin, option, value, message
+):
     twin = make_twin()
     code, out, err = run(capsys, "--port", twin.port, option, value, "where")
     assert (code, out) == (2, "")
