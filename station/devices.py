@@ -63,6 +63,38 @@ class MotionStoppedError(DeviceError):
     """
 
 
+# --------------------------------------------------------------------------- lifecycle and identity
+
+
+@runtime_checkable
+class Connectable(Protocol):
+    """Every device's lifecycle: a factory builds it unconnected; ``connect`` opens it, ``close`` releases it.
+
+    ``connect`` on a connected device does nothing; ``close`` is safe to call twice. The session runner
+    connects all devices and closes them in reverse order in one place.
+    """
+
+    def connect(self) -> None:
+        """Open the link (port, stream, prompt channel) and read the device's state."""
+
+    def close(self) -> None:
+        """Release the device; safe to call twice."""
+
+
+@dataclass(frozen=True)
+class DeviceIdentity:
+    """Who a device is, recorded with every session: each field ``None`` where the device cannot say.
+
+    ``model`` (e.g. the arm type from armstat, the camera's model name), ``serial`` (serial number or
+    device id), ``port`` (serial port, video node, camera address), ``firmware`` (version text).
+    """
+
+    model: str | None = None
+    serial: str | None = None
+    port: str | None = None
+    firmware: str | None = None
+
+
 # --------------------------------------------------------------------------- robot
 
 JOINT_COUNT = 6
@@ -97,20 +129,6 @@ class RobotPosition:
     joints_deg: tuple[float, ...]
     commanded_joints_deg: tuple[float, ...]
     world_mm_deg: tuple[float, ...] | None = None
-
-
-@dataclass(frozen=True)
-class DeviceIdentity:
-    """What a device says of itself; a part it cannot report is ``None`` (never a guess).
-
-    ``model`` is the device's model as it reports it, ``serial`` its serial number, ``port`` where it is
-    connected (a serial port, a camera id), ``firmware`` its firmware version.
-    """
-
-    model: str | None
-    serial: str | None
-    port: str | None
-    firmware: str | None
 
 
 @runtime_checkable
@@ -254,7 +272,7 @@ class Camera(Protocol):
     small protocols below (``ExposureAdjustable`` ...); check with ``isinstance``.
     """
 
-    def open(self) -> None:
+    def connect(self) -> None:
         """Open the device and start streaming; a second call does nothing."""
 
     def close(self) -> None:
@@ -268,6 +286,9 @@ class Camera(Protocol):
 
     def status(self) -> CameraStatus:
         """Size, format and settings as the device reports them."""
+
+    def identity(self) -> DeviceIdentity:
+        """Model, serial or device id, address, firmware where the device reports them."""
 
 
 @runtime_checkable
@@ -381,6 +402,21 @@ class XYTable(Protocol):
     answer within ``timeout_s`` ``DeviceTimeoutError``.
     """
 
+    def connect(self) -> None:
+        """Make the table ready (for the manual table: nothing to open; it checks its prompt channel)."""
+
+    def close(self) -> None:
+        """Release the table (withdraw any open prompt of its own); safe to call twice."""
+
+    def identity(self) -> DeviceIdentity:
+        """What the table is (model, travel), as configured."""
+
+    def check_target(self, x_mm: float, y_mm: float) -> None:
+        """Raise what ``move_to(x_mm, y_mm)`` would raise before acting (travel, non-finite values).
+
+        No side effects: nothing is asked, nothing moves. Pre-flight checks a whole pattern with it.
+        """
+
     def position(self) -> TablePosition:
         """The last confirmed position (DeviceError if none was confirmed yet)."""
 
@@ -393,6 +429,7 @@ __all__ = [
     "PIXEL_FORMATS",
     "Camera",
     "CameraStatus",
+    "Connectable",
     "ControllerError",
     "DeviceBusyError",
     "DeviceConnectionError",
