@@ -68,7 +68,7 @@ def _six(value: Any) -> Any:
 
 
 class TwinSettings(BaseModel):
-    """How the twin behaves. Speeds, accelerations and encoder counts per the protocol doc [A]."""
+    """How the twin behaves. Speeds, accelerations and encoder counts: drivers/crs_a465/DIALECT.md [A]."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
