@@ -15,6 +15,7 @@ Start one in-process::
 
     with start_twin(time_scale=100, seed=1) as twin:
         robot = station.config.build("robot", "crs_a465", port=twin.port)
+        robot.connect()
 
 or as a process shared by several programs: ``station sim controller`` prints the port path.
 """
@@ -67,7 +68,7 @@ def _six(value: Any) -> Any:
 
 
 class TwinSettings(BaseModel):
-    """How the twin behaves. Speeds, accelerations and encoder counts per the protocol doc [A]."""
+    """How the twin behaves. Speeds, accelerations and encoder counts: drivers/crs_a465/DIALECT.md [A]."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
@@ -411,11 +412,9 @@ class ControllerTwin:
         if due is None or time.monotonic() < due[0]:
             return False
         self._scheduled = None
-        if self.arm.moving():
-            self.arm.stop()
-            self._write(f"{SERVER}: {due[1]} (error code 0x{0x7000 + len(due[1]):x})\r\n")
-            return True
-        return False
+        self.arm.stop()  # (when the twin fires late, the motion may have ended already)
+        self._write(f"{SERVER}: {due[1]} (error code 0x{0x7000 + len(due[1]):x})\r\n")
+        return True
 
     # ---------------------------------------------------------------- server
 

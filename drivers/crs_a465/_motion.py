@@ -40,7 +40,7 @@ class MotionSettings(BaseModel):
     deadline_factor: float = Field(3.0, ge=1.0, description="deadline = expected duration x this + margin")
     deadline_margin_s: float = Field(5.0, ge=0.0)
     stall_timeout_s: float = Field(3.0, gt=0.0, description="no change this long, target not reached: fail")
-    poll_interval_s: float = Field(0.05, ge=0.0, description="pause between two polls of w0/w2")
+    poll_interval_s: float = Field(0.02, ge=0.0, description="pause between two polls of w0/w2")
     resolution_deg: float = Field(0.002, gt=0.0, description="w0 equals the target within this (3 decimals)")
     arrival_tolerance_deg: float = Field(
         0.5, gt=0.0, description="|w2 - target| beyond this after arrival is an error (gross difference)"

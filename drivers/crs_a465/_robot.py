@@ -146,6 +146,7 @@ class CrsA465:
         self._speed_pct: float | None = None
         self._commanded: tuple[float, ...] | None = None
         self._arm_type: str | None = None
+        self._linked = False  # connect() succeeded and close() has not been called since
         self.last_status: RobotStatus | None = None
         self.last_position: RobotPosition | None = None
         self.last_arrival: Arrival | None = None
@@ -179,6 +180,7 @@ class CrsA465:
             except BaseException:
                 self._transport.close()
                 raise
+            self._linked = True
             log.info(
                 "connected to %s: speed %s%%, commanded %s",
                 self.port_name,
@@ -189,6 +191,7 @@ class CrsA465:
     def close(self) -> None:
         """Close the link; safe to call twice."""
         with self._lock:
+            self._linked = False
             self._transport.close()
 
     def __enter__(self) -> CrsA465:
@@ -665,7 +668,7 @@ class CrsA465:
         """
         self._stopped.set()
         self._dirty = True
-        if not self._transport.is_open:
+        if not (self._linked and self._transport.is_open):
             log.warning("stop latched on %s (not connected: nothing sent)", self.port_name)
             return
         stop_bytes = self.shell.stop_sequence.encode(self.link.encoding)

@@ -32,6 +32,7 @@ def test_a_joint_move_through_the_driver_moves_the_image_as_the_kinematics_predi
     station: SimStation,
 ) -> None:
     robot = open_robot(station.port)
+    robot.connect()
     try:
         before = centre(station)
         np.testing.assert_allclose(before, [319.5, 239.5], atol=0.02)

@@ -19,7 +19,7 @@ FAST_LINK = LinkSettings(reply_timeout_s=0.3, home_timeout_s=2.0, resync_quiet_s
 TWIN_MOTION = MotionSettings(deadline_margin_s=2.0, stall_timeout_s=1.0, poll_interval_s=0.005)
 
 MODES = ("firmware", "blocking")
-"""The twin's two motion modes: the firmware's (prompt at once, the arm moves on) and the older blocking one."""
+"""The twin's two motion modes: the firmware's (prompt at once, the arm moves on) and the older blocking."""
 
 
 @pytest.fixture(params=MODES)

@@ -24,6 +24,7 @@ from drivers.crs_a465 import (
     UnknownCommandError,
 )
 from station.devices import (
+    DeviceError,
     DeviceIdentity,
     DeviceProtocolError,
     DeviceTimeoutError,
@@ -491,3 +492,14 @@ def test_motion_deadline_grows_with_the_move_and_falls_with_the_speed():
     assert short < long < slow
     # 30 deg at 50 % of 180 deg/s (0.125 s ramps): 30/90 + 90/720 s, x 3 + the 1 s margin
     assert long == pytest.approx((30 / 90 + 90 / 720) * 3 + 1.0)
+
+
+def test_before_connect_identity_is_unknown_and_check_move_needs_a_start():
+    with scripted_robot([]) as (robot, port):
+        assert robot.identity() == DeviceIdentity(model=None, serial=None, port="ScriptedPort", firmware=None)
+        with pytest.raises(DeviceError, match=r"connect\(\) first, or pass start_deg"):
+            robot.check_move(READY)
+        robot.check_move((5, 0, 90, 0, 90, 0), start_deg=READY)
+        robot.stop()  # not connected: latched, nothing sent
+        assert robot.stopped
+        assert bytes(port.written) == b""

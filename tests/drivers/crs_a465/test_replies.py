@@ -7,27 +7,27 @@ import pytest
 
 from drivers.crs_a465 import (
     ArmPowerOffError,
+    AxisLimpError,
     AxisLockedError,
+    CollisionError,
     ControllerBusyError,
     ControllerUsageError,
     CrsControllerError,
     EncoderAlarmError,
     HomingError,
+    IllegalSpeedError,
+    JointLimitError,
     LockedOutError,
     MotionAbortedError,
     MotionFaultError,
-    ServoError,
-    StanceError,
-    UnmappedCodeError,
-    AxisLimpError,
-    CollisionError,
-    IllegalSpeedError,
-    JointLimitError,
     NotHomedError,
     NotOnlineError,
     OutOfReachError,
     PointOfControlError,
+    ServoError,
+    StanceError,
     UnknownCommandError,
+    UnmappedCodeError,
 )
 from drivers.crs_a465._errors import find_error
 from drivers.crs_a465._replies import parse_armstat, parse_position, parse_speed
@@ -104,7 +104,8 @@ def test_the_actual_table_has_the_same_layout():
                                     and line.strip() != "+0         +0"], id="no axes 7-8 rows"),
         pytest.param(lambda lines: [x for line in lines for x in ([line, ""] if line.strip() else [line])],
                      id="extra blank lines"),
-        pytest.param(lambda lines: [line.replace("JOINTS ", "JOINTS\n        ") for line in lines], id="values below"),
+        pytest.param(lambda lines: [line.replace("JOINTS ", "JOINTS\n  ") for line in lines],
+                     id="values below"),
     ],
 )  # fmt: skip
 def test_labelled_rows_tolerate_layout_variants(variant):
