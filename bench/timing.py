@@ -2,7 +2,9 @@
 
 Machines vary by up to 2x from run to run and other jobs share the cores, so every method is timed in
 the same rounds as the baseline, interleaved image by image (a burst of load hits all methods alike),
-on the same decoded images (decode excluded), on one core. Each round gives a median ms per image per
+on the same decoded images (decode excluded), on one core. Times are the thread's CPU time
+(``time.thread_time``): compute per image, not the time spent waiting for a core another job holds
+(under load, wall-clock times of the same code varied 3x within a minute). Each round gives a median ms per image per
 method and its ratio to the baseline's; the table shows the range over the rounds.
 
 Throughput runs ``station measure --json`` as a user would (start-up included) on the same image
@@ -65,10 +67,10 @@ def time_methods(
         for i, image in enumerate(images):
             k = (i + r) % len(names)
             for name in names[k:] + names[:k]:  # rotate the order: no method always runs first
-                t0 = time.perf_counter()
+                t0 = time.thread_time()
                 with contextlib.suppress(*failures):
                     methods[name](image)
-                times[name].append(time.perf_counter() - t0)
+                times[name].append(time.thread_time() - t0)
         for n in names:
             per_round[n].append(1000.0 * float(np.median(times[n])))
     base = per_round[baseline]
