@@ -180,29 +180,35 @@ def segment_edge_sparse(
     across, along = (y, x) if axis == 0 else (x, y)
     flat_img = response.ravel()
     flat = y * w + x
-    sgn = np.float32(sign)
-    value = flat_img[flat] * sgn
+    value = flat_img[flat]
     offsets = np.arange(-testheight, testheight + 1)
+    steps = offsets * s_across
 
     def window(centre: npt.NDArray[np.intp], pos: npt.NDArray[np.intp]) -> Float32Image:
-        """Column-A-shaped windows about flat indices ``centre`` (across position ``pos``), with
-        the thresholded values (0 below the threshold and outside the image)."""
-        k = pos[:, None] + offsets[None, :]
-        valid = (k >= 0) & (k < n_across)
-        idx = centre[:, None] + offsets[None, :] * s_across
-        vals = flat_img[np.where(valid, idx, centre[:, None])] * sgn
-        return np.where(valid & (vals > level), vals, np.float32(0.0))
+        """The response over column-A-shaped windows about flat indices ``centre`` (across position
+        ``pos``). A window position outside the image repeats the window's centre pixel instead:
+        a duplicate changes neither the window's maximum nor whether any value passes the threshold,
+        as the zero of the cut-off column does not."""
+        idx = centre[:, None] + steps[None, :]
+        near = (pos < testheight) | (pos >= n_across - testheight)
+        if near.any():
+            r = np.flatnonzero(near)
+            k = pos[r, None] + offsets[None, :]
+            idx[r] = np.where((k >= 0) & (k < n_across), idx[r], centre[r, None])
+        return flat_img[idx]
 
-    # rule 2: C is the maximum of column A (ties allowed: the thresholded response >= its maximum)
-    keep = window(flat, across).max(axis=1) <= value
+    # in the edge's polarity (sign * response); the thresholded response is that above the level, else 0
+    # rule 2: C is the maximum of column A (ties allowed). Values below the threshold are below C's.
+    a_win = window(flat, across)
+    keep = a_win.max(axis=1) <= value if sign > 0 else a_win.min(axis=1) >= value
     # rule 3: columns E and F, TESTWIDTH before and after C, each hold a value above the threshold
     keep &= (along >= testwidth) & (along < n_along - testwidth)
     if keep.any():
         sel = np.flatnonzero(keep)
         f, a = flat[sel], across[sel]
-        e_any = window(f - testwidth * s_along, a).max(axis=1) > 0
-        f_any = window(f + testwidth * s_along, a).max(axis=1) > 0
-        keep[sel] = e_any & f_any
+        for side in (f - testwidth * s_along, f + testwidth * s_along):
+            win = window(side, a)
+            keep[sel] &= win.max(axis=1) > level if sign > 0 else win.min(axis=1) < -level
     view_col = along[keep]
     view_row = n_across - 1 - across[keep] if reverse else across[keep]
     pts = scan_columns(view_col, view_row, (n_across, n_along), skip=skip, backoff=backoff)
