@@ -106,6 +106,14 @@ def _profile_grid(
 
 
 @lru_cache(maxsize=16)
+def _moment_weights(n: int) -> npt.NDArray[np.float32]:
+    """(n, 2): ones and the positions 0.5 ... n - 0.5: the sum and first moment of n differences."""
+    weights = np.column_stack([np.ones(n), np.arange(n) + 0.5]).astype(np.float32)
+    weights.setflags(write=False)
+    return weights
+
+
+@lru_cache(maxsize=16)
 def _ramp(n: int) -> npt.NDArray[np.float32]:
     """(1, n) from 0 to 1: linear interpolation weights across a window of n samples."""
     ramp = np.linspace(0.0, 1.0, n, dtype=np.float32)[None, :]
@@ -190,17 +198,22 @@ def _profile_points(
         v32 = illumination.at_pixels(xs, ys).astype(np.float32).reshape(2, -1)
         samples /= v32[0][:, None] + (v32[1] - v32[0])[:, None] * _ramp(n)
     _suppress_impulses(samples, impulse_dn)
-    d = (samples[:, 1:] - samples[:, :-1]) * _POLARITY[owner][:, None]
-    # positions relative to each window's first sample keep float32 exact to ~1e-6 px
+    d = samples[:, 1:] - samples[:, :-1]
+    # The window of differences is exactly symmetric about mu: 2 half + 1 differences at positions
+    # 0.5 ... 2 half + 0.5 from the first sample, the two end ones weighted by the fractions of their
+    # pixels inside (1 - f and f, f = mu - floor(mu)), the others fully. The polarity cancels in the
+    # centroid and the spread; only the strength takes its sign.
+    frac = (mu - np.floor(mu)).astype(np.float32)
+    d[:, 0] *= 1.0 - frac
+    d[:, -1] *= frac
     pos = np.arange(n - 1, dtype=np.float32) + np.float32(0.5)
-    mu_rel = (mu - base).astype(np.float32)
-    weight = np.clip(np.float32(half + 0.5) - np.abs(pos[None, :] - mu_rel[:, None]), 0.0, 1.0)
-    wd = weight * d
-    strength = wd.sum(axis=1, dtype=np.float64)
-    safe = np.where(strength > 0, strength, 1.0)
-    rel = (wd @ pos).astype(np.float64) / safe
+    moments = d @ _moment_weights(n - 1)  # (sum, sum of positions): one pass over the differences
+    raw = moments[:, 0].astype(np.float64)
+    strength = raw * _POLARITY[owner]
+    safe = np.where(strength > 0, raw, 1.0)
+    rel = moments[:, 1].astype(np.float64) / safe
     spread = (
-        ((wd * (pos[None, :] - rel[:, None].astype(np.float32)) ** 2).sum(axis=1) / safe)
+        ((d * (pos[None, :] - rel[:, None].astype(np.float32)) ** 2).sum(axis=1) / safe)
         if with_spread
         else None
     )
