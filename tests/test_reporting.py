@@ -299,3 +299,29 @@ def test_magnification_draws_the_largest_error_near_a_seventh_of_the_pattern() -
     assert magnification(50.8, 0.16) == 20.0  # 0.15 * 50.8 / 0.16 = 47.6 -> 20
     assert magnification(50.8, 30.0) == 1.0  # never shrinks errors
     assert magnification(50.8, 0.0) == 1.0
+
+
+def test_sweep_over_any_grid_and_with_every_trial_failed(tmp_path: Path) -> None:
+    trials = [
+        {"number": i + 1, "overrides": {"TESTWIDTH": w}, "mean_um": None, "max_um": None, "error": f"bad {w}"}
+        for i, w in enumerate((3, 5, 7))
+    ]
+    s = session("sweep", results={"trials": trials, "best": None, "source_session": "v-1"})
+    files = write_report(s, tmp_path)  # no best, no numbers: still a report, and no warning (errors here)
+    rows = files.tables["sweep"].splitlines()
+    assert rows[1].split() == ["Trial", "TESTWIDTH", "MaxE", "MeanE", "best"]
+    assert rows[3].split() == ["1", "3", "failed", "bad", "3"]
+    assert "seed_table_1" not in files.tables
+    assert 'class="marked"' not in files.html.read_text(encoding="utf-8")
+
+
+def test_reanalysed_repeatability_and_scale_calibration_origin() -> None:
+    rep = session("repeatability")["results"]
+    rep["tests"] = {}  # a re-analysis that kept only the RP per test
+    s = session("reanalyse", "s-re", results={"source_session": "r-9", "repeatability": rep})
+    tables = text_tables(s)
+    assert "source session  r-9" in tables["session"]
+    assert f"{rep['rp_mm']['J5']:.5f}" in tables["repeatability"]
+    v = session("validation", "v-1")  # the synthetic scale calibration names session v-1
+    assert "(estimated by this session)" in text_tables(v)["validation"]
+    assert "(from session v-1)" in text_tables(session("validation", "v-2"))["validation"]

@@ -96,7 +96,7 @@ def devices_table(s: Session) -> Table:
     return _make("Devices", ("device", *(fields or ["identity"])), rows)
 
 
-def validation_tables(r: ValidationResults) -> dict[str, Table]:
+def validation_tables(r: ValidationResults, session_id: str) -> dict[str, Table]:
     """The validation error table (seed Figures 14-15) and, per position, the displacements."""
     fits = [
         ("raw (rigid)", r.rigid),
@@ -119,9 +119,14 @@ def validation_tables(r: ValidationResults) -> dict[str, Table]:
     ]
     if r.scale_calibration is not None:
         c = r.scale_calibration
+        if c.session_id is None:
+            origin = ""
+        elif str(c.session_id) == session_id:
+            origin = " (estimated by this session)"
+        else:
+            origin = f" (from session {c.session_id})"
         notes.append(
-            f"scale calibration: groove width {c.groove_width_mm:.5f} mm, u = {c.u_mm:.5f} mm"
-            + (f" (session {c.session_id})" if c.session_id is not None else "")
+            f"scale calibration: groove width {c.groove_width_mm:.5f} mm, u = {c.u_mm:.5f} mm{origin}"
         )
     out = {
         "validation": _make(
@@ -229,7 +234,7 @@ def results_tables(s: Session) -> dict[str, Table]:
     """The tables of a session's results (none when it has none)."""
     r = s.results
     if isinstance(r, ValidationResults):
-        return validation_tables(r)
+        return validation_tables(r, s.id)
     if isinstance(r, RepeatabilityResults):
         return repeatability_tables(r)
     if isinstance(r, SweepResults):
