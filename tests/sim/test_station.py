@@ -20,7 +20,7 @@ PERFECT = WorldSpec(table=TableImperfections(skew_deg=0.0, resolution_in=0.0, ba
 @pytest.fixture
 def station() -> Iterator[SimStation]:
     with SimStation(PERFECT, repeat_sigma_deg=0.0) as s:
-        s.camera.open()
+        s.camera.connect()
         yield s
 
 
