@@ -293,10 +293,13 @@ def sweep_figure(r: SweepResults) -> NamedFigure:
     ax.bar(x + w / 2, np.nan_to_num(mx), w, color=MAX_C, label="MaxE")
     top = float(np.nanmax(mx)) if np.isfinite(mx).any() else 1.0
     if is_seed_table_1([t.overrides for t in trials]):
+        seed_label = "seed's Table 1 (over each bar)"
+        if fit != "parallelogram":
+            seed_label = "seed's Table 1 (parallelogram fit)"
         seed_mean = [row[6] * 1000.0 for row in SEED_TABLE_1]
         seed_max = [row[5] * 1000.0 for row in SEED_TABLE_1]
         ax.plot(x - w / 2, seed_mean, "_", color="black", ms=14, mew=2)
-        ax.plot(x + w / 2, seed_max, "_", color="black", ms=14, mew=2, label="seed's Table 1 (over each bar)")
+        ax.plot(x + w / 2, seed_max, "_", color="black", ms=14, mew=2, label=seed_label)
         top = max(top, *seed_max)
     for i in range(len(trials)):
         if not (np.isfinite(mean[i]) and np.isfinite(mx[i])):
