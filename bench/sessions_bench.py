@@ -89,17 +89,16 @@ def overhead(cycles: int = 8, joint: int = 1, speed_pct: int = 80) -> dict[str, 
         motion = sum(_motion_time(sim.twin, m.start_deg, m.end_deg, speed_pct) for m in moves)
         grab = next(grabs)
         rows.append((steps[index], motion, grab))
-    wall = np.array([r[0] for r in rows])
-    motion = np.array([r[1] for r in rows])
-    grab = np.array([r[2] for r in rows])
-    software = wall - motion - grab
+    table = np.array(rows, dtype=np.float64)
+    wall, motion_s, grab_s_arr = table[:, 0], table[:, 1], table[:, 2]
+    software = wall - motion_s - grab_s_arr
     return {
         "cycles": cycles,
         "wall_s_per_cycle": float(wall.mean()),
-        "motion_s_per_cycle": float(motion.mean()),
-        "camera_s_per_cycle": float(grab.mean()),
+        "motion_s_per_cycle": float(motion_s.mean()),
+        "camera_s_per_cycle": float(grab_s_arr.mean()),
         "software_s_per_cycle": float(software.mean()),
-        "software_over_motion": float(software.mean() / motion.mean()),
+        "software_over_motion": float(software.mean() / motion_s.mean()),
     }
 
 
