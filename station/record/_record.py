@@ -351,8 +351,9 @@ class Record:
         """Mark step ``index`` started.
 
         Re-beginning a step that exists (resume after an interruption) resets it: its state goes back
-        to ``started`` and the captures and measurements it had recorded are deleted, images
-        included, since the step runs again from its start and captures them anew.
+        to ``started``. The captures and measurements its interrupted attempt recorded are kept
+        (nothing captured is ever lost); the runner numbers a new attempt's frames after them and
+        analyses the attempt that completed.
         """
         value = json_object(data or {}, "data")
         now = self._now()
@@ -360,9 +361,7 @@ class Record:
         with self._write() as conn:
             self._require_session(conn, session_id)
             exists = conn.execute(sa.select(steps.c.step_index).where(key)).first() is not None
-            stale: list[str] = []
             if exists:
-                stale = self._delete_step_captures(conn, session_id, index)
                 conn.execute(
                     steps.update()
                     .where(key)
@@ -380,17 +379,6 @@ class Record:
                         finished_at=None,
                     )
                 )
-        for path in stale:
-            with contextlib.suppress(FileNotFoundError):
-                (self._data_dir / path).unlink()
-
-    def _delete_step_captures(self, conn: sa.Connection, session_id: str, index: int) -> list[str]:
-        of_step = (captures.c.session_id == session_id) & (captures.c.step_index == index)
-        paths = list(conn.execute(sa.select(captures.c.path).where(of_step)).scalars())
-        ids = sa.select(captures.c.id).where(of_step)
-        conn.execute(measurements.delete().where(measurements.c.capture_id.in_(ids)))
-        conn.execute(captures.delete().where(of_step))
-        return paths
 
     def finish_step(
         self,
