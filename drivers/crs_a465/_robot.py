@@ -512,9 +512,12 @@ class CrsA465:
             if self._stopped.is_set():
                 raise self._halted(what)
             now = self._clock()
-            if tracker.update(now, w0.joints_deg, w2.pulses) and (target is not None or self._all_done()):
+            arrived = tracker.update(now, w0.joints_deg, w2.pulses, w2.joints_deg)
+            if arrived and (target is not None or self._all_done()):
                 return w0, w2
             if target is not None and tracker.stalled(now):
+                if tracker.at_target(w0.joints_deg):
+                    self._arrived(what, target, w0, w2)  # at rest away from the target: says how far
                 axis, diff = worst_axis(w0.joints_deg, target)
                 raise ArrivalError(
                     f"{what}: the arm stopped short: joint {axis} is commanded at"
