@@ -138,9 +138,13 @@ def is_seed_table_1(overrides: Sequence[Mapping[str, Any]]) -> bool:
     return [{str(k).lower(): v for k, v in o.items()} for o in overrides] == seed_trials()
 
 
-def sweep_note(mode: str | None, *, seed_layout: bool) -> str:
-    """What Table 1's columns mean."""
-    note = "MaxE / MeanE in mm after the well-fit parallelogram; * = lowest MeanE, then MaxE"
+def sweep_note(mode: str | None, *, seed_layout: bool, fit: str = "parallelogram") -> str:
+    """What Table 1's columns mean; ``fit``: the errors' fit, the seed's ``parallelogram`` or ``rigid``."""
+    if fit == "parallelogram":
+        after = "after the well-fit parallelogram"
+    else:
+        after = f"after the {fit} fit (the seed's Table 1 is after the parallelogram fit)"
+    note = f"MaxE / MeanE in mm {after}; * = lowest MeanE, then MaxE"
     if mode:
         note = f"{mode} mode; {note}"
     if seed_layout:

@@ -70,6 +70,8 @@ log = logging.getLogger(__name__)
 
 PRELUDE_BASE = 1_000_000
 """Step indices of resume preludes start here (plan steps are numbered from 0)."""
+FRAMES_PER_ATTEMPT = 1000
+"""A step's frames are numbered from attempt x FRAMES_PER_ATTEMPT (plans capture at most 100 per step)."""
 EARLY_FAILURE_CAPTURES = 3
 """A session whose first this-many captures all fail to measure stops: something is misconfigured."""
 
@@ -464,11 +466,28 @@ class SessionRunner:
         source_of = getattr(self.plan, "source_session", None)
         source = self.record.get_session(source_of(self.params)).id if source_of is not None else sid
         measurements = {m.capture_id: m for m in self.record.measurements(sid)}
+        done = {s.index for s in self.record.steps(source) if s.state == "done"}
+        caps = [c for c in self.record.captures(source) if c.step_index in done]
+        # a step run again after an interruption keeps its earlier attempt's frames (nothing captured is
+        # lost); the analysis takes the attempt that completed: the latest
+        latest: dict[int, int] = {}
+        for c in caps:
+            latest[c.step_index] = max(latest.get(c.step_index, 0), c.frame_index // FRAMES_PER_ATTEMPT)
         out = []
-        for cap in self.record.captures(source):
+        for cap in caps:
+            if cap.frame_index // FRAMES_PER_ATTEMPT != latest[cap.step_index]:
+                continue
             m = measurements.get(cap.id)
             out.append(
-                CaptureResult(cap.id, cap.step_index, cap.frame_index, cap.meta, m.result if m else None)
+                CaptureResult(
+                    cap.id,
+                    cap.step_index,
+                    cap.frame_index,
+                    cap.meta,
+                    m.result if m else None,
+                    cap.width,
+                    cap.height,
+                )
             )
         return out
 
@@ -657,6 +676,14 @@ class SessionRunner:
             with contextlib.suppress(DeviceError):
                 p = devices.table.position()
                 meta["table_mm"] = [p.x_mm, p.y_mm]
+        # frame indices of a step's n-th attempt start at n x FRAMES_PER_ATTEMPT (a resumed step never
+        # overwrites or deletes what an interrupted attempt captured)
+        earlier = self.record.captures(sid, step_index=step.index)
+        first = (
+            (max(c.frame_index for c in earlier) // FRAMES_PER_ATTEMPT + 1) * FRAMES_PER_ATTEMPT
+            if earlier
+            else 0
+        )
         frames = devices.camera.grab_many(action.frames)
         ids = []
         params_doc = self.measure_params.model_dump(mode="json")
@@ -665,7 +692,7 @@ class SessionRunner:
             cap = self.record.save_capture(
                 sid,
                 step.index,
-                fi,
+                first + fi,
                 frame.image,
                 timestamp_s=frame.timestamp_s,
                 meta={**meta, "frame_id": frame.frame_id},

@@ -43,7 +43,7 @@ def _header(kind: str, sid: str, state: str = "succeeded") -> dict[str, Any]:
             "camera": {"model": "sim", "serial": "SIM-0001"},
             "table": {"model": "manual X-Y micrometer table", "serial": "XY-1"},
         },
-        "software": {"version": "0.1.0", "python": "3.11.7"},
+        "software": {"station": "0.1.0", "python": "3.11.7", "numpy": "2.4.6", "host": "bench-1"},
         "results": None,
     }
 
@@ -90,6 +90,11 @@ def validation_results(seed: int = 1, *, noise_um: float = 0.05, scale: float = 
             "u_mm": 0.0011,
             "session_id": "v-1",
         },
+        "groove_width_u_mm": 0.0011,
+        "groove_width_used_mm": 0.794,
+        "approach": "same-direction",
+        "n_positions": len(cmd),
+        "failures": [],
     }
 
 
@@ -118,6 +123,7 @@ def repeatability_results(seed: int = 2, *, cycles: int = 30, sequences: bool = 
             "rp_mm": rep.rp,
             "rp_ci95_mm": _bootstrap_rp(pts, rng),
             "n_cycles": cycles,
+            "failures": [],
         }
         if name.startswith("J"):
             joint = int(name[1])
@@ -130,6 +136,8 @@ def repeatability_results(seed: int = 2, *, cycles: int = 30, sequences: bool = 
         "n_cycles": cycles,
         "tests": tests,
         "seed_table2_mm": targets,
+        "speed_pct": 80,
+        "load_kg": 1.0,
     }
 
 
@@ -158,17 +166,23 @@ def sweep_results(seed: int = 3) -> dict[str, Any]:
 def session(kind: str, sid: str = "s-0001", **changes: Any) -> dict[str, Any]:
     """A whole session of ``kind`` with results; ``changes`` override header fields."""
     s = _header(kind, sid)
+    measure = {"mode": "precise", "groove_width_mm": 0.794, "camera_matrix": None}
     if kind == "validation":
-        s["params"] = {"frames_per_position": 1, "approach": "same-direction", "approach_um": 10.0}
+        plan = {"frames_per_position": 1, "approach": "same-direction", "approach_um": 10.0}
         s["results"] = validation_results()
     elif kind == "repeatability":
-        s["params"] = {"cycles": 30, "warmup_cycles": 3, "delta_deg": 10, "speed_pct": 80, "load_kg": 1.0}
+        plan = {"cycles": 30, "warmup_cycles": 3, "delta_deg": 10, "speed_pct": 80, "load_kg": 1.0}
         s["results"] = repeatability_results()
     elif kind == "sweep":
-        s["params"] = {"session": "v-1", "mode": "paper"}
+        plan, measure = {"session": "v-1"}, {"mode": "paper"}
         s["results"] = sweep_results()
-    elif kind == "reanalyse":
-        s["params"] = {"session": "v-1", "set": {"window_sigmas": 3.0}}
-        s["results"] = {"source_session": "v-1", "validation": validation_results(seed=4)}
+    else:
+        plan, measure = {"session": "v-1"}, dict(measure, window_sigmas=3.0)
+        s["results"] = {
+            "source_session": "v-1",
+            "kind": "validation",
+            "validation": validation_results(seed=4),
+        }
+    s["params"] = {"plan": plan, "measure": measure, "scale_calibration": None}
     s.update(changes)
     return s

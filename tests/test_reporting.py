@@ -94,7 +94,8 @@ def test_validation_report_has_the_error_table_and_both_figures(reports: Any) ->
     assert "2026-11-27 18:30:05 UTC" in page
     assert "software 0.1.0" in page
     assert "CRS A465 / C500C" in page
-    assert "approach_um" in page
+    assert "<td>plan.approach_um</td><td>10.0</td>" in page
+    assert "<td>measure.camera_matrix</td><td>-</td>" in page
     text = files.tables["validation"].splitlines()
     raw = next(line for line in text if line.startswith("raw (rigid)")).split()
     assert raw[2:4] == [f"{r['rigid']['mean_um']:.4f}", f"{r['rigid']['max_um']:.4f}"]
@@ -277,7 +278,7 @@ def test_rejects_what_is_not_a_session(change: dict[str, Any], message: str) -> 
 
 def test_reanalyse_needs_its_source_kind() -> None:
     s = session("reanalyse", results={"source_session": "v-1"})
-    with pytest.raises(ReportError, match="exactly one of 'validation' or 'repeatability'"):
+    with pytest.raises(ReportError, match="must name the source's kind"):
         text_tables(s)
 
 
@@ -299,3 +300,70 @@ def test_magnification_draws_the_largest_error_near_a_seventh_of_the_pattern() -
     assert magnification(50.8, 0.16) == 20.0  # 0.15 * 50.8 / 0.16 = 47.6 -> 20
     assert magnification(50.8, 30.0) == 1.0  # never shrinks errors
     assert magnification(50.8, 0.0) == 1.0
+
+
+def test_sweep_over_any_grid_and_with_every_trial_failed(tmp_path: Path) -> None:
+    trials = [
+        {"number": i + 1, "overrides": {"TESTWIDTH": w}, "mean_um": None, "max_um": None, "error": f"bad {w}"}
+        for i, w in enumerate((3, 5, 7))
+    ]
+    s = session("sweep", results={"trials": trials, "best": None, "source_session": "v-1"})
+    files = write_report(s, tmp_path)  # no best, no numbers: still a report, and no warning (errors here)
+    rows = files.tables["sweep"].splitlines()
+    assert rows[1].split() == ["Trial", "TESTWIDTH", "MaxE", "MeanE", "best"]
+    assert rows[3].split() == ["1", "3", "failed", "bad", "3"]
+    assert "seed_table_1" not in files.tables
+    assert 'class="marked"' not in files.html.read_text(encoding="utf-8")
+
+
+def test_reanalysed_repeatability_and_scale_calibration_origin() -> None:
+    rep = session("repeatability")["results"]
+    rep["tests"] = {}  # a re-analysis that kept only the RP per test
+    s = session(
+        "reanalyse", "s-re", results={"source_session": "r-9", "kind": "repeatability", "repeatability": rep}
+    )
+    tables = text_tables(s)
+    assert "source session  r-9" in tables["session"]
+    assert f"{rep['rp_mm']['J5']:.5f}" in tables["repeatability"]
+    v = session("validation", "v-1")  # the synthetic scale calibration names session v-1
+    assert "(estimated by this session)" in text_tables(v)["validation"]
+    assert "(from session v-1)" in text_tables(session("validation", "v-2"))["validation"]
+
+
+def test_failed_tests_and_unmeasured_captures_are_listed(tmp_path: Path) -> None:
+    s = session("repeatability", "s-fail-some")
+    r = s["results"]
+    r["tests"] = {
+        "J1": r["tests"]["J1"],
+        "J2": {"error": "only 2 cycle captures were measured; RP needs at least 3"},
+    }
+    r["rp_mm"] = {"J1": r["rp_mm"]["J1"]}
+    r["tests"]["J1"]["failures"] = [
+        {"capture_id": 17, "step_index": 4, "frame_index": 0, "error": "no cross found", "code": "no_cross"}
+    ]
+    files = write_report(s, tmp_path)
+    check_files(files, ["repeatability-joints", "repeatability-rp"])
+    j2 = next(line for line in files.tables["repeatability"].splitlines() if line.startswith("J2 "))
+    assert "no RP: only 2 cycle captures were measured" in j2
+    assert files.tables["failures"].splitlines()[3].split() == [
+        "J1",
+        "4",
+        "0",
+        "17",
+        "no",
+        "cross",
+        "found",
+        "(no_cross)",
+    ]
+
+
+def test_sweep_prefers_the_parallelogram_errors_of_table_1() -> None:
+    s = session("sweep")
+    assert "after the rigid fit" in text_tables(s)["sweep"]  # trials with mean_um / max_um only
+    for t in s["results"]["trials"]:
+        if t["mean_um"] is not None:
+            t.update(parallelogram_mean_um=t["mean_um"] / 2, parallelogram_max_um=t["max_um"] / 2)
+    table = text_tables(s)["sweep"]
+    assert "after the well-fit parallelogram" in table
+    first = s["results"]["trials"][0]
+    assert f"{first['parallelogram_max_um'] / 1000:.5f}  {first['parallelogram_mean_um'] / 1000:.5f}" in table

@@ -22,6 +22,8 @@ from ._vernier import DIVISION_IN, format_in, in_to_mm, is_on_grid, mm_to_in, sn
 log = logging.getLogger(__name__)
 
 PROMPT_KIND = "table.move"
+#: Targets farther than this (mm) are outside any micrometer table's travel.
+_FAR_MM = 1e6
 X_FIELD = "x_in"
 Y_FIELD = "y_in"
 
@@ -103,6 +105,11 @@ class ManualXYTable:
                 raise MotionRejectedError(
                     f"{self._name}: target {axis} = {value!r} is not a finite number of millimetres"
                 )
+        if max(abs(x_mm), abs(y_mm)) > _FAR_MM:  # no micrometer reading exists: no rounding either
+            raise MotionRejectedError(
+                f"{self._name}: target ({x_mm:g}, {y_mm:g}) mm is outside its travel "
+                f"{format_in(self._travel[X_FIELD][0])} to {format_in(self._travel[X_FIELD][1])}"
+            )
         x_in, y_in = self.readings_for(x_mm, y_mm)
         self._check_travel({X_FIELD: x_in, Y_FIELD: y_in}, what=f"target ({x_mm:g}, {y_mm:g}) mm")
 
@@ -137,8 +144,10 @@ class ManualXYTable:
         the operator cancels, DeviceTimeoutError if nobody answers within ``timeout_s`` (the prompt is
         then withdrawn), DeviceError if another prompt is open.
         """
-        if timeout_s is not None and not (math.isfinite(timeout_s) and timeout_s > 0):
-            raise ValueError(f"timeout_s must be a positive number of seconds or None, got {timeout_s!r}")
+        if timeout_s is not None and not math.isfinite(timeout_s):
+            raise MotionRejectedError(f"{self._name}: timeout_s must be a finite number, got {timeout_s!r}")
+        if timeout_s is not None and timeout_s <= 0:
+            raise MotionRejectedError(f"{self._name}: timeout_s must be above 0 s, got {timeout_s!r}")
         self.check_target(x_mm, y_mm)
         x_in, y_in = self.readings_for(x_mm, y_mm)
         with self._lock:

@@ -99,6 +99,8 @@ class CaptureResult:
     frame_index: int
     meta: Mapping[str, Any]
     measurement: Mapping[str, Any] | None
+    width: int = 0
+    height: int = 0
 
 
 @dataclass

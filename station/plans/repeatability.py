@@ -3,8 +3,9 @@
 Per test the arm captures at the reference pose, then ``cycles`` times leaves it and returns and
 captures again, after ``warmup_cycles`` uncaptured cycles (ISO 9283 asks for a warm-up). A joint test
 moves joint ``j`` by ``delta_deg`` and back; a sequence test visits its list of joint targets and
-returns. RP = l-bar + 3 S_l of the crossing's positions at the return captures, with a bootstrap 95 %
-interval for that number of cycles.
+returns. RP = l-bar + 3 S_l of the positions at the return captures, with a bootstrap 95 % interval for that
+number of cycles. The position is the tool point's: where the camera's optical axis meets the artifact,
+in the artifact's axes (mm), from one homography fitted over the test's captures.
 
 The sign of each joint's excursion defaults to the one that does not bring the camera toward the
 artifact (from the kinematics and the configured camera and artifact plane); pre-flight then checks
@@ -23,7 +24,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 from station.devices import JOINT_COUNT
 from station.metrology import repeatability, rp_interval
 from station.plans import Capture, CaptureResult, MoveJoints, PlanContext, PlanError, SetSpeed, Settle, Step
-from station.plans._analysis import failures, group_mean, measured, series_positions_mm
+from station.plans._analysis import failures, group_mean, measured, principal_point, series_positions_mm
 
 #: The seed's Table 2: RP (mm) per joint, delta 10 deg, about 80 % speed and 50 % rated load, 30 cycles.
 SEED_TABLE2_MM = {"J1": 0.01664, "J2": 0.01813, "J3": 0.02321, "J4": 0.01671, "J5": 0.05299, "J6": 0.01601}
@@ -181,7 +182,10 @@ class RepeatabilityPlan:
                     "error": f"only {len(cycles)} cycle captures were measured; RP needs at least 3"
                 }
                 continue
-            pos = series_positions_mm(mine, width)
+            # The tool point: where the optical axis meets the artifact, relative to the crossing (RP is
+            # a position repeatability; a turn about the optical axis does not move this point).
+            pp = principal_point(mine, ctx.measure_params.camera_matrix)
+            pos = series_positions_mm(mine, width, relative_to_px=pp)
             is_cycle = [c.meta.get("role") == "cycle" for c in mine]
             keys, points = group_mean([c.meta["cycle"] for c in cycles], pos[np.array(is_cycle)])
             rep = repeatability(points)

@@ -181,15 +181,25 @@ class Record:
 
     @contextlib.contextmanager
     def _write(self) -> Iterator[sa.Connection]:
-        with self._engine.connect() as conn:
-            conn = conn.execution_options(**{BEGIN_OPTION: "IMMEDIATE"})
-            with conn.begin():
-                yield conn
+        """One write transaction; a database failure (disk full, lost server ...) is a RecordError."""
+        try:
+            with self._engine.connect() as conn:
+                conn = conn.execution_options(**{BEGIN_OPTION: "IMMEDIATE"})
+                with conn.begin():
+                    yield conn
+        except sa.exc.DBAPIError as exc:
+            raise RecordError(
+                f"cannot write to the record at {self.url}: {exc.orig}; nothing of this change was "
+                "recorded (check free space and the database server)"
+            ) from exc
 
     @contextlib.contextmanager
     def _read(self) -> Iterator[sa.Connection]:
-        with self._engine.connect() as conn:
-            yield conn
+        try:
+            with self._engine.connect() as conn:
+                yield conn
+        except sa.exc.DBAPIError as exc:
+            raise RecordError(f"cannot read the record at {self.url}: {exc.orig}") from exc
 
     def _now(self) -> datetime:
         now = self._clock()
@@ -303,7 +313,13 @@ class Record:
 
     # -- events ----------------------------------------------------------------------------------
     def add_event(self, session_id: str, type: str, data: Mapping[str, Any]) -> EventRow:
-        """Append an event; its ``seq`` is the session's next, its ``id`` the station-wide next."""
+        """Append an event; its ``seq`` is the session's next, its ``id`` the station-wide next.
+
+        On SQLite commits are serialised, so ids appear to readers in increasing order and polling
+        with ``events(after_id=...)`` misses none. On a server shared by several stations, ids are
+        drawn when rows are inserted and two stations' commits may land out of order: a reader that
+        follows several sessions there should poll per session and use ``seq``.
+        """
         value = json_object(data, "data")
         now = self._now()
         with self._write() as conn:
@@ -335,8 +351,9 @@ class Record:
         """Mark step ``index`` started.
 
         Re-beginning a step that exists (resume after an interruption) resets it: its state goes back
-        to ``started`` and the captures and measurements it had recorded are deleted, images
-        included, since the step runs again from its start and captures them anew.
+        to ``started``. The captures and measurements its interrupted attempt recorded are kept
+        (nothing captured is ever lost); the runner numbers a new attempt's frames after them and
+        analyses the attempt that completed.
         """
         value = json_object(data or {}, "data")
         now = self._now()
@@ -344,9 +361,7 @@ class Record:
         with self._write() as conn:
             self._require_session(conn, session_id)
             exists = conn.execute(sa.select(steps.c.step_index).where(key)).first() is not None
-            stale: list[str] = []
             if exists:
-                stale = self._delete_step_captures(conn, session_id, index)
                 conn.execute(
                     steps.update()
                     .where(key)
@@ -364,17 +379,6 @@ class Record:
                         finished_at=None,
                     )
                 )
-        for path in stale:
-            with contextlib.suppress(FileNotFoundError):
-                (self._data_dir / path).unlink()
-
-    def _delete_step_captures(self, conn: sa.Connection, session_id: str, index: int) -> list[str]:
-        of_step = (captures.c.session_id == session_id) & (captures.c.step_index == index)
-        paths = list(conn.execute(sa.select(captures.c.path).where(of_step)).scalars())
-        ids = sa.select(captures.c.id).where(of_step)
-        conn.execute(measurements.delete().where(measurements.c.capture_id.in_(ids)))
-        conn.execute(captures.delete().where(of_step))
-        return paths
 
     def finish_step(
         self,
@@ -468,9 +472,9 @@ class Record:
         try:
             with self._write() as conn:
                 capture_id = new_id(conn.execute(captures.insert().values(**values)))
-        except sa.exc.SQLAlchemyError as exc:
-            path.unlink(missing_ok=True)
-            raise RecordError(f"cannot record capture {rel} in {self.url}: {exc}") from exc
+        except RecordError:
+            path.unlink(missing_ok=True)  # no row names it: an orphan would only mislead
+            raise
         return CaptureRow(id=capture_id, **values)
 
     def captures(self, session_id: str, *, step_index: int | None = None) -> list[CaptureRow]:

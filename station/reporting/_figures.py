@@ -29,7 +29,7 @@ from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
 
 from station.report import is_seed_table_1
 from station.reporting._model import RepeatabilityResults, RepeatabilityTest, SweepResults, ValidationResults
-from station.reporting._tables import motion
+from station.reporting._tables import motion, sweep_errors_um, sweep_fit
 from station.sweep import SEED_TABLE_1
 
 #: Colours (matplotlib's tab palette): table/fit, measured/error, RP, l-bar.
@@ -241,13 +241,14 @@ def _repeatability_panel(ax: Axes, name: str, t: RepeatabilityTest) -> None:
 
 def rp_summary_figure(r: RepeatabilityResults) -> NamedFigure:
     """RP per test with its 95 % interval, beside the seed's Table 2 where given."""
-    names = list(r.tests) + [k for k in r.rp_mm if k not in r.tests]
-    rp = np.array([r.tests[k].rp_mm if k in r.tests else r.rp_mm[k] for k in names]) * 1000.0
+    tests = r.measured
+    names = list(tests) + [k for k in r.rp_mm if k not in tests]
+    rp = np.array([tests[k].rp_mm if k in tests else r.rp_mm[k] for k in names]) * 1000.0
     fig = _figure(max(4.0, 0.7 * len(names) + 2.0), 3.8)
     ax = fig.add_subplot()
     x = np.arange(len(names))
     ax.bar(x, rp, width=0.6, color=POINT_C, alpha=0.8, label="RP, this session")
-    lo = [r.tests[k].rp_ci95_mm if k in r.tests else None for k in names]
+    lo = [tests[k].rp_ci95_mm if k in tests else None for k in names]
     have = [i for i, c in enumerate(lo) if c is not None]
     if have:
         cis = np.array([lo[i] for i in have], dtype=np.float64) * 1000.0
@@ -278,11 +279,13 @@ def rp_summary_figure(r: RepeatabilityResults) -> NamedFigure:
 
 
 def sweep_figure(r: SweepResults) -> NamedFigure:
-    """Table 1 as bars: MeanE and MaxE (um, after the parallelogram fit) per trial; the best marked."""
+    """Table 1 as bars: MeanE and MaxE (um, after the fit the table uses) per trial; the best marked."""
     trials = r.trials
     x = np.arange(len(trials))
-    mean = np.array([np.nan if t.mean_um is None else t.mean_um for t in trials], dtype=np.float64)
-    mx = np.array([np.nan if t.max_um is None else t.max_um for t in trials], dtype=np.float64)
+    errors = sweep_errors_um(r)
+    mean = np.array([np.nan if m is None else m for m, _ in errors], dtype=np.float64)
+    mx = np.array([np.nan if m is None else m for _, m in errors], dtype=np.float64)
+    fit = sweep_fit(r)
     fig = _figure(max(5.0, 0.6 * len(trials) + 2.5), 4.0)
     ax = fig.add_subplot()
     w = 0.38
@@ -290,13 +293,16 @@ def sweep_figure(r: SweepResults) -> NamedFigure:
     ax.bar(x + w / 2, np.nan_to_num(mx), w, color=MAX_C, label="MaxE")
     top = float(np.nanmax(mx)) if np.isfinite(mx).any() else 1.0
     if is_seed_table_1([t.overrides for t in trials]):
+        seed_label = "seed's Table 1 (over each bar)"
+        if fit != "parallelogram":
+            seed_label = "seed's Table 1 (parallelogram fit)"
         seed_mean = [row[6] * 1000.0 for row in SEED_TABLE_1]
         seed_max = [row[5] * 1000.0 for row in SEED_TABLE_1]
         ax.plot(x - w / 2, seed_mean, "_", color="black", ms=14, mew=2)
-        ax.plot(x + w / 2, seed_max, "_", color="black", ms=14, mew=2, label="seed's Table 1 (over each bar)")
+        ax.plot(x + w / 2, seed_max, "_", color="black", ms=14, mew=2, label=seed_label)
         top = max(top, *seed_max)
-    for i, t in enumerate(trials):
-        if t.mean_um is None or t.max_um is None:
+    for i in range(len(trials)):
+        if not (np.isfinite(mean[i]) and np.isfinite(mx[i])):
             ax.text(
                 x[i], 0.02 * top, "failed", rotation=90, ha="center", va="bottom", fontsize=8, color="black"
             )
@@ -305,12 +311,12 @@ def sweep_figure(r: SweepResults) -> NamedFigure:
         if t.number == r.best:
             lbl.set_fontweight("bold")
     ax.set_xlabel("trial (★ best: lowest MeanE, then MaxE)")
-    ax.set_ylabel("error after parallelogram fit (µm)")
+    ax.set_ylabel(f"error after {fit} fit (µm)")
     ax.set_ylim(0, top * 1.15)
     ax.grid(True, axis="y", lw=0.4, alpha=0.5)
     ax.legend(fontsize=8)
     ax.set_title("Parameter study: MeanE / MaxE per trial (Table 1)", fontsize=10)
-    return NamedFigure("sweep", "MeanE and MaxE per trial after the parallelogram fit (Table 1).", fig)
+    return NamedFigure("sweep", f"MeanE and MaxE per trial after the {fit} fit (Table 1).", fig)
 
 
 def results_figures(r: object) -> list[NamedFigure]:
@@ -320,14 +326,14 @@ def results_figures(r: object) -> list[NamedFigure]:
             return []
         return [validation_figure(r, fit="raw"), validation_figure(r, fit="parallelogram")]
     if isinstance(r, RepeatabilityResults):
-        joints = {k: t for k, t in r.tests.items() if t.kind == "joint"}
-        others = {k: t for k, t in r.tests.items() if t.kind != "joint"}
+        joints = {k: t for k, t in r.measured.items() if t.kind == "joint"}
+        others = {k: t for k, t in r.measured.items() if t.kind != "joint"}
         out = []
         if joints:
             out.append(repeatability_figure(joints, name="repeatability-joints", what="Joint tests"))
         if others:
             out.append(repeatability_figure(others, name="repeatability-sequences", what="Sequences"))
-        if r.tests or r.rp_mm:
+        if r.measured or r.rp_mm:
             out.append(rp_summary_figure(r))
         return out
     if isinstance(r, SweepResults):

@@ -93,7 +93,7 @@ def render(s: Session, tables: Mapping[str, Table], figures: Sequence[tuple[str,
     if s.kind == "reanalyse" and s.results_kind is not None:
         heading += f" ({_TITLES.get(s.results_kind, s.results_kind).lower()})"
     date = format_date(s.created_at)
-    version = s.software.get("version")
+    version = s.software.get("version", s.software.get("station"))
     facts = [
         f'<span class="state state-{_e(s.state)}">{_e(s.state)}</span>',
         f"session <b>{_e(s.id)}</b>",

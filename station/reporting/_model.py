@@ -72,6 +72,10 @@ class ValidationResults(_Model):
     affine: Fit
     positions: list[Position] = Field(default_factory=list)
     scale_calibration: ScaleCalibration | None = None
+    groove_width_u_mm: float | None = None
+    groove_width_used_mm: float | None = None
+    approach: str | None = None
+    failures: list[dict[str, Any]] = Field(default_factory=list)
 
 
 class RepeatabilityTest(_Model):
@@ -88,22 +92,39 @@ class RepeatabilityTest(_Model):
     rp_mm: float
     rp_ci95_mm: Point | None = None
     n_cycles: int
+    failures: list[dict[str, Any]] = Field(default_factory=list)
+
+
+class FailedTest(_Model):
+    """A test whose RP could not be computed (too few cycles measured), with the reason."""
+
+    error: str
 
 
 class RepeatabilityResults(_Model):
     rp_mm: dict[str, float] = Field(default_factory=dict)
     n_cycles: int | None = None
-    tests: dict[str, RepeatabilityTest] = Field(default_factory=dict)
+    tests: dict[str, RepeatabilityTest | FailedTest] = Field(default_factory=dict)
     seed_table2_mm: dict[str, float] | None = None
+    speed_pct: float | None = None
+    load_kg: float | None = None
+
+    @property
+    def measured(self) -> dict[str, RepeatabilityTest]:
+        """The tests that have attained positions and RP, in order."""
+        return {k: t for k, t in self.tests.items() if isinstance(t, RepeatabilityTest)}
 
 
 class SweepTrial(_Model):
-    """One trial; ``mean_um`` / ``max_um`` are the errors after the parallelogram fit (Table 1's)."""
+    """One trial: ``mean_um`` / ``max_um`` after the rigid fit (raw), ``parallelogram_*_um`` after the
+    affine fit (Table 1's MaxE / MeanE) when the trial recorded them."""
 
     number: int
     overrides: dict[str, Any] = Field(default_factory=dict)
     mean_um: float | None = None
     max_um: float | None = None
+    parallelogram_mean_um: float | None = None
+    parallelogram_max_um: float | None = None
     error: str | None = None
 
 
@@ -179,12 +200,17 @@ def _parse_results(kind: str, raw: Any) -> tuple[str | None, str | None, Results
     source = raw.get("source_session")
     source_id = None if source is None else str(source)
     if kind == "reanalyse":
-        inner = [k for k in ("validation", "repeatability") if raw.get(k) is not None]
-        if len(inner) != 1:
+        inner = raw.get("kind")
+        if inner is None:
+            found = [k for k in KINDS if raw.get(k) is not None]
+            inner = found[0] if len(found) == 1 else None
+        if inner not in KINDS or raw.get(inner) is None:
             raise ReportError(
-                "results of a reanalyse session must hold exactly one of 'validation' or 'repeatability'"
+                "results of a reanalyse session must name the source's kind ('kind') and hold its results "
+                f"under that name, one of {', '.join(map(repr, KINDS))}"
             )
-        kind, raw = inner[0], raw[inner[0]]
+        drawn, inner_source, results = _parse_results(str(inner), raw[inner])
+        return drawn, source_id if source_id is not None else inner_source, results
     try:
         return kind, source_id, _PARSERS[kind].model_validate(raw)
     except PydanticValidationError as exc:
@@ -246,7 +272,9 @@ def format_date(iso: str) -> str:
 
 
 def format_value(value: Any) -> str:
-    """A parameter or identity value as compact text (JSON for structures)."""
+    """A parameter or identity value as compact text (JSON for structures, "-" for none)."""
+    if value is None:
+        return "-"
     if isinstance(value, str):
         return value
     if isinstance(value, float) and not math.isfinite(value):

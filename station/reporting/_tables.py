@@ -8,11 +8,13 @@ errors), Table 1 (the parameter study; its column logic is shared with ``station
 from __future__ import annotations
 
 import html
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 from station.report import SweepRow, is_seed_table_1, seed_table_1, sweep_note, sweep_table, table
 from station.reporting._model import (
+    FailedTest,
     RepeatabilityResults,
     RepeatabilityTest,
     Session,
@@ -75,7 +77,13 @@ def session_table(s: Session) -> Table:
 
 
 def parameters_table(s: Session) -> Table:
-    rows = [(str(k), format_value(v)) for k, v in s.params.items()]
+    """One row per parameter; groups (the plan's, the measurement's) flattened as ``group.name``."""
+    rows = []
+    for k, v in s.params.items():
+        if isinstance(v, dict) and v:
+            rows += [(f"{k}.{name}", format_value(value)) for name, value in v.items()]
+        else:
+            rows.append((str(k), format_value(v)))
     return _make("Parameters", ("parameter", "value"), rows or [("(none recorded)", "")])
 
 
@@ -96,7 +104,7 @@ def devices_table(s: Session) -> Table:
     return _make("Devices", ("device", *(fields or ["identity"])), rows)
 
 
-def validation_tables(r: ValidationResults) -> dict[str, Table]:
+def validation_tables(r: ValidationResults, session_id: str) -> dict[str, Table]:
     """The validation error table (seed Figures 14-15) and, per position, the displacements."""
     fits = [
         ("raw (rigid)", r.rigid),
@@ -113,15 +121,28 @@ def validation_tables(r: ValidationResults) -> dict[str, Table]:
         ]
         for name, f in fits
     ]
+    width = f"groove width from the scale fit: {r.groove_width_mm:.5f} mm"
+    if r.groove_width_u_mm is not None:
+        width += f", u = {r.groove_width_u_mm:.5f} mm"
+    width += f" (similarity scale {r.scale:.6f}"
+    if r.groove_width_used_mm is not None:
+        width += f"; images measured with {r.groove_width_used_mm:.5f} mm"
     notes = [
         "displacement errors after each best fit of commanded to measured positions, in um",
-        f"groove width from the scale fit: {r.groove_width_mm:.5f} mm (similarity scale {r.scale:.6f})",
+        width + ")",
     ]
+    if r.approach is not None:
+        notes.append(f"approach: {r.approach}")
     if r.scale_calibration is not None:
         c = r.scale_calibration
+        if c.session_id is None:
+            origin = ""
+        elif str(c.session_id) == session_id:
+            origin = " (estimated by this session)"
+        else:
+            origin = f" (from session {c.session_id})"
         notes.append(
-            f"scale calibration: groove width {c.groove_width_mm:.5f} mm, u = {c.u_mm:.5f} mm"
-            + (f" (session {c.session_id})" if c.session_id is not None else "")
+            f"scale calibration: groove width {c.groove_width_mm:.5f} mm, u = {c.u_mm:.5f} mm{origin}"
         )
     out = {
         "validation": _make(
@@ -148,7 +169,20 @@ def validation_tables(r: ValidationResults) -> dict[str, Table]:
             "commanded: table displacements; measured: image displacements (artifact axes); "
             "err_raw / err_par: |error| after the rigid / parallelogram fit",
         )
+    if r.failures:
+        out["failures"] = failures_table(r.failures)
     return out
+
+
+def failures_table(failures: Sequence[Mapping[str, Any]], tests: Sequence[str] | None = None) -> Table:
+    """Captures whose measurement failed: where (test, step, frame, capture) and why."""
+    rows = []
+    for i, f in enumerate(failures):
+        error = format_value(f.get("error") or "not measured") + (f" ({f['code']})" if f.get("code") else "")
+        where = [format_value(f.get(k)) for k in ("step_index", "frame_index", "capture_id")]
+        rows.append([*([tests[i]] if tests is not None else []), *where, error])
+    headers = [*(["test"] if tests is not None else []), "step", "frame", "capture", "error"]
+    return _make("Captures not measured", headers, rows, "kept in the record; left out of the results")
 
 
 def _norm(v: tuple[float, float]) -> float:
@@ -173,11 +207,15 @@ def repeatability_tables(r: RepeatabilityResults) -> dict[str, Table]:
         headers.append("seed_RP_mm")
     rows = []
     names = list(r.tests) + [n for n in r.rp_mm if n not in r.tests]
+    failed: list[tuple[str, dict[str, Any]]] = []
     for name in names:
         t = r.tests.get(name)
         if t is None:  # an RP without its test's details (partial results)
             row = [name, "", "", "", f"{r.rp_mm[name]:.5f}", "", ""]
+        elif isinstance(t, FailedTest):
+            row = [name, f"no RP: {t.error}", "", "", "", "", ""]
         else:
+            failed += [(name, f) for f in t.failures]
             ci = "" if t.rp_ci95_mm is None else f"{t.rp_ci95_mm[0]:.5f} - {t.rp_ci95_mm[1]:.5f}"
             row = [name, motion(name, t), f"{t.l_bar_mm:.5f}", f"{t.s_l_mm:.5f}", f"{t.rp_mm:.5f}"]
             row += [ci, str(t.n_cycles)]
@@ -188,9 +226,33 @@ def repeatability_tables(r: RepeatabilityResults) -> dict[str, Table]:
         "RP = l_bar + 3 S_l (seed eq. 13, ISO 9283); S_l with N - 1; l = distance of each attained "
         "position from the barycentre; 95 % interval of RP by bootstrap over the N cycles",
     ]
-    if r.n_cycles is not None:
-        notes.append(f"{r.n_cycles} cycles per test")
-    return {"repeatability": _make("Repeatability (Table 2)", headers, rows, *notes)}
+    conditions = [f"{r.n_cycles} cycles per test"] if r.n_cycles is not None else []
+    if r.speed_pct is not None:
+        conditions.append(f"{r.speed_pct:g} % speed")
+    if r.load_kg is not None:
+        conditions.append(f"load {r.load_kg:g} kg")
+    if conditions:
+        notes.append(", ".join(conditions))
+    out = {"repeatability": _make("Repeatability (Table 2)", headers, rows, *notes)}
+    if failed:
+        out["failures"] = failures_table([f for _, f in failed], [name for name, _ in failed])
+    return out
+
+
+def sweep_fit(r: SweepResults) -> str:
+    """Which errors Table 1 shows: the seed's ``parallelogram`` when every measured trial recorded them,
+    else ``rigid`` (``mean_um`` / ``max_um``)."""
+    ok = [t for t in r.trials if t.mean_um is not None or t.parallelogram_mean_um is not None]
+    if all(t.parallelogram_mean_um is not None and t.parallelogram_max_um is not None for t in ok):
+        return "parallelogram"
+    return "rigid"
+
+
+def sweep_errors_um(r: SweepResults) -> list[tuple[float | None, float | None]]:
+    """(MeanE, MaxE) per trial in um, after the fit ``sweep_fit`` chose; None where the trial failed."""
+    if sweep_fit(r) == "parallelogram":
+        return [(t.parallelogram_mean_um, t.parallelogram_max_um) for t in r.trials]
+    return [(t.mean_um, t.max_um) for t in r.trials]
 
 
 def sweep_rows(r: SweepResults) -> list[SweepRow]:
@@ -199,11 +261,11 @@ def sweep_rows(r: SweepResults) -> list[SweepRow]:
         SweepRow(
             t.number,
             t.overrides,
-            None if t.max_um is None else t.max_um / 1000.0,
-            None if t.mean_um is None else t.mean_um / 1000.0,
+            None if mx is None else mx / 1000.0,
+            None if mean is None else mean / 1000.0,
             t.error,
         )
-        for t in r.trials
+        for t, (mean, mx) in zip(r.trials, sweep_errors_um(r), strict=True)
     ]
 
 
@@ -212,7 +274,7 @@ def sweep_tables(r: SweepResults, mode: str | None) -> dict[str, Table]:
     seed_layout = is_seed_table_1([t.overrides for t in r.trials])
     headers, rows = sweep_table(sweep_rows(r), r.best, seed_layout=seed_layout)
     marked = frozenset(i for i, t in enumerate(r.trials) if t.number == r.best)
-    notes = sweep_note(mode, seed_layout=seed_layout).split("\n")
+    notes = sweep_note(mode, seed_layout=seed_layout, fit=sweep_fit(r)).split("\n")
     if r.source_session is not None:
         notes.append(f"images of validation session {r.source_session}")
     out = {"sweep": Table("Parameter study (Table 1)", tuple(headers), _tuples(rows), tuple(notes), marked)}
@@ -229,11 +291,12 @@ def results_tables(s: Session) -> dict[str, Table]:
     """The tables of a session's results (none when it has none)."""
     r = s.results
     if isinstance(r, ValidationResults):
-        return validation_tables(r)
+        return validation_tables(r, s.id)
     if isinstance(r, RepeatabilityResults):
         return repeatability_tables(r)
     if isinstance(r, SweepResults):
-        mode = s.params.get("mode")
+        measure = s.params.get("measure")
+        mode = measure.get("mode") if isinstance(measure, Mapping) else s.params.get("mode")
         return sweep_tables(r, None if mode is None else str(mode))
     return {}
 

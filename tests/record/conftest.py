@@ -3,8 +3,9 @@
 The PostgreSQL server is Debian's (``/usr/lib/postgresql/*/bin``), started once per test process in a
 temporary directory: ``initdb`` and ``pg_ctl`` refuse to run as root, so as root they run as the
 ``postgres`` user in a directory it owns. The server listens on a unix socket in that directory only
-(no TCP port to collide with), and every test gets a fresh database. Without PostgreSQL the tests
-skip, except under ``CI=true`` where they fail (CI installs ``postgresql``: tools/apt-packages.txt).
+(no TCP port to collide with), and every test gets a fresh schema (its own search path). Without
+PostgreSQL the tests skip, except under ``CI=true`` where they fail (CI installs ``postgresql``:
+tools/apt-packages.txt).
 """
 
 from __future__ import annotations
@@ -72,18 +73,19 @@ class PostgresServer:
             self._run(str(self.bin / "pg_ctl"), "-D", str(self.data), "-m", "immediate", "-w", "stop")
         shutil.rmtree(self.root, ignore_errors=True)
 
-    def url(self, database: str = "postgres") -> str:
-        return f"postgresql+psycopg://{PG_USER}@/{database}?host={self.root}"
+    def url(self, schema: str | None = None) -> str:
+        url = f"postgresql+psycopg://{PG_USER}@/postgres?host={self.root}"
+        return url if schema is None else f"{url}&options=-csearch_path%3D{schema}"
 
     def new_database(self) -> str:
-        """A fresh, empty database; returns its URL."""
+        """The URL of a fresh, empty schema (as good as a new database, and much faster to make)."""
         import sqlalchemy as sa
 
         name = f"record_{os.getpid()}_{next(self._names)}"
         engine = sa.create_engine(self.url(), isolation_level="AUTOCOMMIT")
         try:
             with engine.connect() as conn:
-                conn.exec_driver_sql(f'CREATE DATABASE "{name}" TEMPLATE template0')
+                conn.exec_driver_sql(f'CREATE SCHEMA "{name}"')
         finally:
             engine.dispose()
         return self.url(name)

@@ -10,6 +10,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from sqlalchemy import event as sa_event
 
 from station.record import MAX_POINTS, Record, RecordError, RecordWriteError, _images, params_hash
 from tests.record.test_sessions import SNAPSHOT
@@ -149,3 +150,23 @@ def test_measurement_keeps_the_json_object_without_point_arrays(record: Record) 
     assert record.measurements(s.id) == [row, failed]
     with pytest.raises(RecordError, match="no capture 999999"):
         record.add_measurement(s.id, 999999, {"ok": True}, params=params, software="x")
+
+
+def test_database_full_is_a_record_error_and_keeps_what_was_committed(tmp_path: Path) -> None:
+    """SQLite's own disk-full (SQLITE_FULL, simulated by capping the file at its size): a clean
+    error naming the cause, no image file left without its row, and earlier rows intact."""
+    with Record(tmp_path) as rec:
+        s = rec.create_session("validation", **SNAPSHOT)
+        kept = rec.add_event(s.id, "state", {"state": "running"})
+        with rec.engine.connect() as conn:
+            pages = conn.exec_driver_sql("PRAGMA page_count").scalar()
+        sa_event.listen(rec.engine, "connect", lambda c, _r: c.execute(f"PRAGMA max_page_count={pages}"))
+        rec.engine.dispose()
+        big = {"note": "x" * 20000}
+        with pytest.raises(RecordError, match=r"cannot write to the record at .*full"):
+            rec.add_event(s.id, "pad", big)
+        with pytest.raises(RecordError, match="full"):
+            rec.save_capture(s.id, 0, 0, _frame(np.uint8), timestamp_s=0.0, meta=big)
+        assert not (rec.data_dir / "images" / s.id / "00000-00.png").exists()
+        assert rec.events(s.id) == [kept]
+        assert rec.captures(s.id) == []

@@ -68,7 +68,7 @@ def test_steps_and_last_completed_step(record: Record) -> None:
     assert record.last_completed_step(s.id) == 1
 
 
-def test_rebeginning_a_step_resets_it_and_drops_its_partial_captures(record: Record) -> None:
+def test_rebeginning_a_step_resets_it_and_keeps_its_partial_captures(record: Record) -> None:
     s = record.create_session("validation", **SNAPSHOT)
     frame = np.full((64, 80), 7, np.uint8)
     record.begin_step(s.id, 0, "reference")
@@ -81,10 +81,12 @@ def test_rebeginning_a_step_resets_it_and_drops_its_partial_captures(record: Rec
     record.begin_step(s.id, 1, "position 1", {"resumed": True})
     step = record.steps(s.id)[1]
     assert (step.state, step.data, step.finished_at) == ("started", {"resumed": True}, None)
-    assert record.captures(s.id) == [kept]
-    assert record.measurements(s.id) == []
-    assert not (record.data_dir / partial.path).exists()
-    again = record.save_capture(s.id, 1, 0, frame, timestamp_s=2.0, meta={})
+    assert record.captures(s.id) == [kept, partial]  # nothing captured is lost
+    assert len(record.measurements(s.id)) == 1
+    assert (record.data_dir / partial.path).exists()
+    with pytest.raises(RecordError, match="never overwritten"):
+        record.save_capture(s.id, 1, 0, frame, timestamp_s=2.0, meta={})
+    again = record.save_capture(s.id, 1, 1000, frame, timestamp_s=2.0, meta={})  # the next attempt
     assert record.load_image(again).tolist() == frame.tolist()
 
 
