@@ -310,13 +310,17 @@ def test_unplug_from_outside(twin_and_term):
 # ------------------------------------------------------------------ settings
 
 
-def test_fault_servo_stops_the_arm_and_the_robot_server_says_why(twin_and_term):
-    twin, term = twin_and_term
-    twin.inject("servo@1:Collision error on axis 1")
-    term.type(b"joint 1 30\r")
-    out = term.until(b")\r\n")
-    assert out.startswith(b"joint 1 30\r\n$ /sbin/robotsrv: Collision error on axis 1 (error code 0x")
-    assert twin.motion_log[-1].stopped
+def test_fault_servo_stops_the_arm_and_the_robot_server_says_why():
+    with start_twin(time_scale=1.0) as twin:  # 30 deg in about 0.46 s: the fault fires half-way
+        term = Terminal(twin.port)
+        try:
+            twin.inject("servo@1:Collision error on axis 1")
+            term.type(b"joint 1 30\r")
+            out = term.until(b")\r\n")
+            assert out.startswith(b"joint 1 30\r\n$ /sbin/robotsrv: Collision error on axis 1 (error code 0x")
+            assert twin.motion_log[-1].stopped
+        finally:
+            term.close()
 
 
 def test_fault_specs_parse():
