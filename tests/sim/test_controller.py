@@ -123,7 +123,7 @@ def test_application_shell_prompt_commas_and_armstat():
 
 
 def test_by_default_the_prompt_comes_back_while_the_arm_moves_and_a_second_motion_is_held():
-    with start_twin(speed_pct=10, time_scale=10.0) as twin:  # 20 deg at 18 deg/s: 0.12 s at 10x
+    with start_twin(speed_pct=20, time_scale=1.0) as twin:  # 20 deg at 36 deg/s: 0.6 s
         term = Terminal(twin.port)
         try:
             term.type(b"joint 1 20\r")
