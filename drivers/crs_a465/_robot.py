@@ -554,6 +554,7 @@ class CrsA465:
     def _arrived(self, what: str, target: tuple[float, ...], w0: PositionReport, w2: PositionReport) -> None:
         error = tuple(a - t for a, t in zip(w2.joints_deg, target, strict=True))
         self.last_arrival = Arrival(what, target, w0.joints_deg, w2.joints_deg, error)
+        log.info("%s arrived: w2 - target = %s deg", what, _fmt(error))
         self.last_position = RobotPosition(w2.joints_deg, w0.joints_deg, w2.world_mm_deg)
         axis, diff = worst_axis(w2.joints_deg, target)
         if abs(diff) > self.motion.arrival_tolerance_deg:
