@@ -442,6 +442,8 @@ class CrsA465:
     def _command_motion(self, request: Request, timeout_s: float) -> None:
         """Send a motion command and check what it printed; a garbled or lost reply may hide a motion."""
         text = request.text(self.shell)
+        if self._stopped.is_set():  # latched since the method began: send no motion after the halt key
+            raise self._halted(f"{text} (not sent)")
         try:
             lines = self._run(request, timeout_s=timeout_s, watch=True)
             if self._stopped.is_set():
