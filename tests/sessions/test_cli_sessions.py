@@ -136,11 +136,20 @@ def test_reanalyse_reproduces_the_results_bit_for_bit(tmp_path: Path) -> None:
         (["run", "repeatability", "--config", "/nonexistent/station.toml"], "no such configuration file"),
     ],
 )
-def test_usage_errors_exit_2_with_one_clear_line(tmp_path: Path, args: list[str], message: str) -> None:
-    p = station(*args, "--data", str(tmp_path / "data"))
-    assert p.returncode == 2, (p.returncode, p.stderr)
-    assert message in p.stderr
-    assert "Traceback" not in p.stderr
+def test_usage_errors_exit_2_with_one_clear_line(
+    tmp_path: Path, args: list[str], message: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """In-process (the same entry point as the console script): nothing is built, nothing moves."""
+    from station.cli import main
+
+    try:
+        code = main([*args, "--data", str(tmp_path / "data")])
+    except SystemExit as exc:  # argparse's own usage errors
+        code = int(exc.code or 0)
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert message in err
+    assert "Traceback" not in err
 
 
 def test_a_killed_session_is_interrupted_and_resumes(tmp_path: Path) -> None:

@@ -21,6 +21,7 @@ from station.metrology import fit_rigid, repeatability
 from station.plans import get_plan, parse_params
 from station.record import EventRow, Record
 from station.runner import RunnerState, SessionRunner
+from tests.sessions.conftest import results_of, sid_of
 
 
 @pytest.fixture
@@ -73,8 +74,8 @@ def test_validation_session_measures_the_true_table_displacements(record: Record
     truth = TruthAtCaptures(devices.truth)
     runner = run(record, devices, "validation", truth)
     assert runner.state is RunnerState.SUCCEEDED, runner.error
-    res = record.get_session(runner.session_id).results
-    caps = record.captures(runner.session_id)
+    res = results_of(record, runner)
+    caps = record.captures(sid_of(runner))
     assert len(caps) == 40
     # the artifact's true displacement, in its own axes (um), against what the station measured
     R0 = truth.artifact[caps[0].id][:3, :3]
@@ -96,7 +97,7 @@ def test_validation_recovers_the_true_groove_width_with_backlash_on(record: Reco
     assert spec.table.backlash_mm > 0
     runner = run(record, sim_devices(spec, seed=5), "validation")
     assert runner.state is RunnerState.SUCCEEDED, runner.error
-    res = record.get_session(runner.session_id).results
+    res = results_of(record, runner)
     est, u = res["scale_calibration"]["groove_width_mm"], res["scale_calibration"]["u_mm"]
     assert u <= 0.002 * 0.770, f"u = {u:.6f} mm is more than 0.2 % of the width"
     assert abs(est - 0.770) <= 2 * u, f"estimated {est:.6f} +/- {u:.6f} mm, true 0.770 mm"
@@ -107,8 +108,8 @@ def test_repeatability_agrees_with_the_worlds_truth(record: Record) -> None:
     truth = TruthAtCaptures(devices.truth)
     runner = run(record, devices, "repeatability", truth, cycles=10, warmup_cycles=1, joints=[1, 3, 5])
     assert runner.state is RunnerState.SUCCEEDED, runner.error
-    sid = runner.session_id
-    res = record.get_session(sid).results
+    sid = sid_of(runner)
+    res = results_of(record, runner)
     caps = record.captures(sid)
     for test in ("J1", "J3", "J5"):
         pts = np.array(
