@@ -38,10 +38,11 @@ def main() -> None:
     print("session overhead at real time (twin time_scale=1) ...", flush=True)
     over = sessions_bench.overhead(cycles=10)
     out["overhead"] = over
+    motion_ms, software_ms = over["motion_s_per_cycle"] * 1000, over["software_s_per_cycle"] * 1000
     print(
-        f"  per cycle: motion {over['motion_s_per_cycle'] * 1000:.0f} ms, station software "
-        f"{over['software_s_per_cycle'] * 1000:.0f} ms ({over['software_over_motion'] * 100:.1f} % of the motion; "
-        f"goal under 5 %), simulated camera {over['camera_s_per_cycle'] * 1000:.0f} ms",
+        f"  per cycle: motion {motion_ms:.0f} ms, station software {software_ms:.0f} ms "
+        f"({over['software_over_motion'] * 100:.1f} % of the motion; goal under 5 %), "
+        f"simulated camera {over['camera_s_per_cycle'] * 1000:.0f} ms",
         flush=True,
     )
 
