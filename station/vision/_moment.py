@@ -12,8 +12,8 @@ import numpy as np
 import numpy.typing as npt
 
 _DY, _DX = np.mgrid[-1:2, -1:2]
-_DX_FLAT = _DX.ravel().astype(np.float64)
-_DY_FLAT = _DY.ravel().astype(np.float64)
+#: (9, 3): the 3x3 patch's sum, x moment and y moment in one product (whole numbers: exact in float64).
+_MOMENTS = np.column_stack([np.ones(9), _DX.ravel(), _DY.ravel()]).astype(np.float64)
 
 
 def intensity_moment(
@@ -33,13 +33,14 @@ def intensity_moment(
     if not valid.any():
         return refined, valid
     xv, yv = x[valid], y[valid]
-    patch = raw[yv[:, None] + _DY.ravel()[None, :], xv[:, None] + _DX.ravel()[None, :]].astype(np.float64)
-    total = patch.sum(axis=1)
+    offsets = (_DY * w + _DX).ravel()
+    patch = np.take(raw, (yv * w + xv)[:, None] + offsets[None, :]).astype(np.float64)
+    total, mx, my = (patch @ _MOMENTS).T
     ok = total > 0
     safe = np.where(ok, total, 1.0)
     refined_valid = refined[valid]
-    refined_valid[:, 0] = np.where(ok, xv + (patch @ _DX_FLAT) / safe, xv)
-    refined_valid[:, 1] = np.where(ok, yv + (patch @ _DY_FLAT) / safe, yv)
+    refined_valid[:, 0] = np.where(ok, xv + mx / safe, xv)
+    refined_valid[:, 1] = np.where(ok, yv + my / safe, yv)
     refined[valid] = refined_valid
     valid_idx = np.flatnonzero(valid)
     valid[valid_idx[~ok]] = False
