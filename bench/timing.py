@@ -4,8 +4,9 @@ Machines vary by up to 2x from run to run and other jobs share the cores, so eve
 the same rounds as the baseline, interleaved image by image (a burst of load hits all methods alike),
 on the same decoded images (decode excluded), on one core. Times are the thread's CPU time
 (``time.thread_time``): compute per image, not the time spent waiting for a core another job holds
-(under load, wall-clock times of the same code varied 3x within a minute). Each round gives a median ms per image per
-method and its ratio to the baseline's; the table shows the range over the rounds.
+(under load, wall-clock times of the same code varied 3x within a minute). Each round gives a
+median ms per image per method and its ratio to the baseline's; the table shows the range over the
+rounds.
 
 Throughput runs ``station measure --json`` as a user would (start-up included) on the same image
 files with ``--jobs 1`` and ``--jobs <cores>``, alternately, several times.
