@@ -71,11 +71,11 @@ def _flat_basis(x: FloatArray, y: FloatArray, shape: tuple[int, int]) -> FloatAr
 
 @lru_cache(maxsize=8)
 def _power_tables(shape: tuple[int, int]) -> tuple[FloatArray, FloatArray]:
-    """Powers 0..degree of every column's and row's normalised coordinate: (w, d+1) and (h, d+1)."""
+    """Powers 0..degree of every column's and row's normalised coordinate: (d+1, w) and (d+1, h)."""
     h, w = shape
     xn, yn = _normalised(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64), shape)
-    xp = np.stack([xn**i for i in range(_FLAT_DEGREE + 1)], axis=1)
-    yp = np.stack([yn**i for i in range(_FLAT_DEGREE + 1)], axis=1)
+    xp = np.stack([xn**i for i in range(_FLAT_DEGREE + 1)])
+    yp = np.stack([yn**i for i in range(_FLAT_DEGREE + 1)])
     xp.setflags(write=False)
     yp.setflags(write=False)
     return xp, yp
@@ -107,12 +107,15 @@ class Illumination:
     def at_pixels(self, x: npt.NDArray[np.intp], y: npt.NDArray[np.intp]) -> FloatArray:
         """The illumination at whole pixels (1-D index arrays inside the frame): the same polynomial
         as ``at`` from tables of each column's and row's powers, without evaluating them again."""
-        return np.asarray((self._column_coef[x] * _power_tables(self.shape)[1][y]).sum(axis=1), np.float64)
+        # (term, point) layout: the sum runs over the first axis (fast for a short axis)
+        return np.asarray(
+            (self._column_coef[:, x] * _power_tables(self.shape)[1][:, y]).sum(axis=0), np.float64
+        )
 
     @cached_property
     def _column_coef(self) -> FloatArray:
-        """Per image column x, the coefficients of y^0..y^d: sum_i coef[i, j] xn^i."""
-        return np.asarray(_power_tables(self.shape)[0] @ self._grid, np.float64)
+        """(d+1, w): per image column x, the coefficients of y^0..y^d: sum_i coef[i, j] xn^i."""
+        return np.asarray(self._grid.T @ _power_tables(self.shape)[0], np.float64)
 
     @cached_property
     def _grid(self) -> FloatArray:

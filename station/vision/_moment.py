@@ -34,8 +34,8 @@ def intensity_moment(
         return refined, valid
     xv, yv = x[valid], y[valid]
     offsets = (_DY * w + _DX).ravel()
-    patch = np.take(raw, (yv * w + xv)[:, None] + offsets[None, :]).astype(np.float64)
-    total, mx, my = (patch @ _MOMENTS).T
+    patch = np.take(raw, offsets[:, None] + (yv * w + xv)[None, :]).astype(np.float64)  # (9, N)
+    total, mx, my = _MOMENTS.T @ patch
     ok = total > 0
     safe = np.where(ok, total, 1.0)
     refined_valid = refined[valid]

@@ -189,18 +189,19 @@ def segment_edge_sparse(
         ``pos``). A window position outside the image repeats the window's centre pixel instead:
         a duplicate changes neither the window's maximum nor whether any value passes the threshold,
         as the zero of the cut-off column does not."""
-        idx = centre[:, None] + steps[None, :]
+        # (window position, candidate) layout: the extremes reduce over the first, short axis (fast)
+        idx = centre[None, :] + steps[:, None]
         near = (pos < testheight) | (pos >= n_across - testheight)
         if near.any():
             r = np.flatnonzero(near)
-            k = pos[r, None] + offsets[None, :]
-            idx[r] = np.where((k >= 0) & (k < n_across), idx[r], centre[r, None])
+            k = pos[None, r] + offsets[:, None]
+            idx[:, r] = np.where((k >= 0) & (k < n_across), idx[:, r], centre[None, r])
         return flat_img[idx]
 
     # in the edge's polarity (sign * response); the thresholded response is that above the level, else 0
     # rule 2: C is the maximum of column A (ties allowed). Values below the threshold are below C's.
     a_win = window(flat, across)
-    keep = a_win.max(axis=1) <= value if sign > 0 else a_win.min(axis=1) >= value
+    keep = a_win.max(axis=0) <= value if sign > 0 else a_win.min(axis=0) >= value
     # rule 3: columns E and F, TESTWIDTH before and after C, each hold a value above the threshold
     keep &= (along >= testwidth) & (along < n_along - testwidth)
     if keep.any():
@@ -208,7 +209,7 @@ def segment_edge_sparse(
         f, a = flat[sel], across[sel]
         for side in (f - testwidth * s_along, f + testwidth * s_along):
             win = window(side, a)
-            keep[sel] &= win.max(axis=1) > level if sign > 0 else win.min(axis=1) < -level
+            keep[sel] &= win.max(axis=0) > level if sign > 0 else win.min(axis=0) < -level
     view_col = along[keep]
     view_row = n_across - 1 - across[keep] if reverse else across[keep]
     pts = scan_columns(view_col, view_row, (n_across, n_along), skip=skip, backoff=backoff)
