@@ -107,10 +107,13 @@ class Illumination:
     def at_pixels(self, x: npt.NDArray[np.intp], y: npt.NDArray[np.intp]) -> FloatArray:
         """The illumination at whole pixels (1-D index arrays inside the frame): the same polynomial
         as ``at`` from tables of each column's and row's powers, without evaluating them again."""
-        # (term, point) layout: the sum runs over the first axis (fast for a short axis)
-        return np.asarray(
-            (self._column_coef[:, x] * _power_tables(self.shape)[1][:, y]).sum(axis=0), np.float64
-        )
+        # Horner's scheme in y with each column's coefficients: 1-D gathers and products only
+        coef = self._column_coef
+        yn = _power_tables(self.shape)[1][1][y]
+        value = coef[_FLAT_DEGREE][x]
+        for j in range(_FLAT_DEGREE - 1, -1, -1):
+            value = value * yn + coef[j][x]
+        return np.asarray(value, np.float64)
 
     @cached_property
     def _column_coef(self) -> FloatArray:
