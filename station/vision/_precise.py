@@ -223,28 +223,39 @@ def _profile_points(
 
 
 class _Groups:
-    """Per-edge statistics of values grouped by edge (``owner`` sorted), each in a few array calls."""
+    """Per-edge statistics of values grouped by edge (``owner`` sorted), each in a few array calls.
+
+    A selection (boolean mask over all values) becomes the weight matrix ``onehot * sel`` (edges x
+    values): per-edge counts and sums are then one matrix product, and medians sort a padded
+    (edges x longest group) grid.
+    """
 
     def __init__(self, owner: npt.NDArray[np.intp]) -> None:
         self.owner = owner
         counts = np.bincount(owner, minlength=len(EDGES))
         self.counts = counts
-        self.slot = np.arange(owner.size) - (np.cumsum(counts) - counts)[owner]
         self.width = max(int(counts.max()), 1)
+        slot = np.arange(owner.size) - (np.cumsum(counts) - counts)[owner]
+        self.flatpos = owner * self.width + slot
+        self.onehot = (owner[None, :] == _ROWS[:, None]).astype(np.float64)
+
+    def weights(self, sel: npt.NDArray[np.bool_]) -> FloatArray:
+        """(edges, values): 1 where a value is selected and belongs to the edge."""
+        return self.onehot * sel[None, :]
 
     def count(self, sel: npt.NDArray[np.bool_]) -> npt.NDArray[np.intp]:
-        return np.bincount(self.owner[sel], minlength=len(EDGES))
+        return (self.onehot @ sel.astype(np.float64)).astype(np.intp)
 
-    def median(self, values: FloatArray, sel: npt.NDArray[np.bool_]) -> FloatArray:
-        """Per edge, the upper median of ``values[sel]`` (``fast_median``'s); inf for an empty group."""
-        grid = np.full((len(EDGES), self.width), np.inf)
-        grid[self.owner[sel], self.slot[sel]] = values[sel]
+    def median(
+        self, values: FloatArray, sel: npt.NDArray[np.bool_], n_sel: npt.NDArray[np.intp]
+    ) -> FloatArray:
+        """Per edge, the upper median of ``values[sel]`` (``fast_median``'s; ``n_sel``: the selected
+        count per edge); inf for an empty group."""
+        flat = np.full(len(EDGES) * self.width, np.inf)
+        flat[self.flatpos] = np.where(sel, values, np.inf)
+        grid = flat.reshape(len(EDGES), self.width)
         grid.sort(axis=1)
-        return grid[_ROWS, self.count(sel) // 2]
-
-    def sums(self, sel: npt.NDArray[np.bool_], *values: FloatArray) -> list[FloatArray]:
-        o = self.owner[sel]
-        return [np.bincount(o, weights=v, minlength=len(EDGES)).astype(np.float64) for v in values]
+        return grid[_ROWS, n_sel // 2]
 
 
 def _tls(
@@ -252,13 +263,12 @@ def _tls(
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Per edge, the total-least-squares line through its selected points (the principal axis):
     arrays (a, b, c) of ``a x + b y = c``."""
-    n = np.maximum(groups.count(sel), 1)
-    xs, ys = x[sel], y[sel]
-    sx, sy = groups.sums(sel, xs, ys)
+    wts = groups.weights(sel)
+    n = np.maximum(wts.sum(axis=1), 1.0)
+    sx, sy = (wts @ np.column_stack([x, y])).T
     mx, my = sx / n, sy / n
-    o = groups.owner[sel]
-    dx, dy = xs - mx[o], ys - my[o]
-    sxx, syy, sxy = groups.sums(sel, dx * dx, dy * dy, dx * dy)
+    dx, dy = x - mx[groups.owner], y - my[groups.owner]
+    sxx, syy, sxy = (wts @ np.column_stack([dx * dx, dy * dy, dx * dy])).T
     phi = 0.5 * np.arctan2(2.0 * sxy, sxx - syy)  # direction of the line
     nx, ny = -np.sin(phi), np.cos(phi)
     return nx, ny, nx * mx + ny * my
@@ -290,7 +300,7 @@ def _fit_edges(
             "it runs too close to the border; keep the groove corners 10 px or more inside the frame"
         ),
     )
-    contrast = groups.median(p.strength, np.ones(owner.size, bool))
+    contrast = groups.median(p.strength, np.ones(owner.size, bool), counts)
     fail(
         contrast < params.min_contrast_dn,
         lambda i: f"its contrast is {contrast[i]:.1f} DN (at least {params.min_contrast_dn} DN)",
@@ -307,10 +317,11 @@ def _fit_edges(
     la, lb, lc = models.lines()
     inliers = good & ok[owner]
     resid = la[owner] * x + lb[owner] * y - lc[owner]
+    n_in = groups.count(inliers)
     for _ in range(2 if last else 1):
-        med = groups.median(resid, inliers)
+        med = groups.median(resid, inliers, n_in)
         dev = np.abs(resid - med[owner])
-        sigma = np.maximum(1.4826 * groups.median(dev, inliers), 1e-3)
+        sigma = np.maximum(1.4826 * groups.median(dev, inliers, n_in), 1e-3)
         inliers = good & ok[owner] & (dev <= params.outlier_sigma * sigma[owner])
         n_in = groups.count(inliers)
         fail(n_in < 3, lambda i: "its points do not lie on a line")
@@ -320,9 +331,8 @@ def _fit_edges(
     flip = np.where(_VERTICAL, la < 0, lb < 0)
     sign = np.where(flip, -1.0, 1.0)
     la, lb, lc = la * sign, lb * sign, lc * sign
-    n_in = np.maximum(groups.count(inliers), 1)
-    (ss,) = groups.sums(inliers, resid[inliers] ** 2)
-    rms = np.sqrt(ss / n_in)
+    n_in = np.maximum(n_in, 1)
+    rms = np.sqrt(groups.weights(inliers) @ (resid * resid) / n_in)
     if last:  # earlier passes only steer the windows
         limit = params.residual_limit_px
         fail(rms > limit, lambda i: f"its points are not on a line (rms {rms[i]:.2f} px)")
@@ -342,7 +352,7 @@ def _fit_edges(
             )
     spread = None
     if p.spread is not None and ok.all():
-        spread = float(np.sort(groups.median(p.spread, good))[len(EDGES) // 2])
+        spread = float(np.sort(groups.median(p.spread, good, n_good))[len(EDGES) // 2])
     with np.errstate(divide="ignore", invalid="ignore"):
         slope = np.where(_VERTICAL, -lb / la, -la / lb)
         intercept = np.where(_VERTICAL, lc / la, lc / lb)
