@@ -83,10 +83,12 @@ def _power_tables(shape: tuple[int, int]) -> tuple[FloatArray, FloatArray]:
 
 @lru_cache(maxsize=8)
 def _small_basis(small_shape: tuple[int, int], shape: tuple[int, int], scale: int) -> FloatArray:
-    """Flat-field polynomial terms at the reduced image's pixel centres, (sh*sw, terms)."""
+    """Flat-field polynomial terms at the reduced image's pixel centres, (terms, sh*sw)."""
     xf, yf = _centred_grid(small_shape, shape, scale)
     h, w = shape
-    basis = _flat_basis((xf + (w - 1) / 2.0).ravel(), (yf + (h - 1) / 2.0).ravel(), shape)
+    basis = np.ascontiguousarray(
+        _flat_basis((xf + (w - 1) / 2.0).ravel(), (yf + (h - 1) / 2.0).ravel(), shape).T
+    )
     basis.setflags(write=False)
     return basis
 
@@ -128,6 +130,15 @@ class Illumination:
         return grid
 
 
+def _solve_normal(At: FloatArray, values: FloatArray) -> FloatArray:
+    """Least squares by the normal equations (At: (terms, points)), solved by OpenCV's Cholesky
+    (numpy's general solver costs more in checks than in arithmetic at this size)."""
+    ok, coef = cv2.solve(At @ At.T, (At @ values)[:, None], flags=cv2.DECOMP_CHOLESKY)
+    if not ok:  # not positive definite (degenerate lands): the general solver decides
+        return np.asarray(np.linalg.solve(At @ At.T, At @ values), np.float64)
+    return np.asarray(coef, np.float64).ravel()
+
+
 def fit_illumination(
     small: npt.NDArray[np.float32], land: npt.NDArray[np.bool_], shape: tuple[int, int], *, scale: int
 ) -> Illumination | None:
@@ -142,15 +153,15 @@ def fit_illumination(
     idx = np.flatnonzero(land.ravel())[::4]
     if idx.size < 10 * len(_FLAT_TERMS):
         return None
-    A = basis[idx]
+    At = np.take(basis, idx, axis=1)  # (terms, points): the normal equations are row products
     values = small.ravel()[idx].astype(np.float64)
-    coef = np.linalg.solve(A.T @ A, A.T @ values)
-    resid = values - A @ coef
+    coef = _solve_normal(At, values)
+    resid = values - coef @ At
     mad = fast_median(np.abs(resid - fast_median(resid)))
     keep = np.abs(resid) <= 3.0 * 1.4826 * max(mad, 1e-6)
-    Ak = A[keep]
-    coef = np.linalg.solve(Ak.T @ Ak, Ak.T @ values[keep])
-    fitted = Ak @ coef
+    Akt = At[:, keep]
+    coef = _solve_normal(Akt, values[keep])
+    fitted = coef @ Akt
     level = float(fitted.mean())
     if level <= 0 or float(fitted.min()) <= 0.05 * level:
         return None  # the fit ran wild (too few lands in view): do without
