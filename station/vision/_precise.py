@@ -265,10 +265,9 @@ def _tls(
     arrays (a, b, c) of ``a x + b y = c``."""
     wts = groups.weights(sel)
     n = np.maximum(wts.sum(axis=1), 1.0)
-    sx, sy = (wts @ np.column_stack([x, y])).T
-    mx, my = sx / n, sy / n
+    mx, my = (wts @ x) / n, (wts @ y) / n
     dx, dy = x - mx[groups.owner], y - my[groups.owner]
-    sxx, syy, sxy = (wts @ np.column_stack([dx * dx, dy * dy, dx * dy])).T
+    sxx, syy, sxy = wts @ (dx * dx), wts @ (dy * dy), wts @ (dx * dy)
     phi = 0.5 * np.arctan2(2.0 * sxy, sxx - syy)  # direction of the line
     nx, ny = -np.sin(phi), np.cos(phi)
     return nx, ny, nx * mx + ny * my
@@ -288,6 +287,8 @@ def _fit_edges(
     ok = np.ones(len(EDGES), bool)
 
     def fail(where: npt.NDArray[np.bool_], reason: Callable[[int], str]) -> None:
+        if not (where & ok).any():
+            return
         for i in np.flatnonzero(where & ok).tolist():
             problems[EDGES[i]] = reason(i)
         ok[where] = False
