@@ -79,10 +79,9 @@ def _above(response: Float32Image, levels: list[float]) -> IntArray:
     above either polarity's threshold, in one pass (each edge then keeps its own)."""
     if not levels:
         return np.zeros((0, 2), np.intp)
-    # a scalar second operand is what OpenCV means; its stubs only name arrays
-    above = cv2.compare(np.abs(response), min(levels), cv2.CMP_GT)  # type: ignore[call-overload]
-    found = cv2.findNonZero(above)
-    return np.zeros((0, 2), np.intp) if found is None else found.reshape(-1, 2).astype(np.intp)
+    flat = np.flatnonzero(np.abs(response) > min(levels))  # row-major, as cv2.findNonZero orders them
+    y, x = np.divmod(flat, response.shape[1])
+    return np.column_stack([x, y])
 
 
 def _edge_fit(gray: Gray8, pixels: IntArray, edge: Edge, params: MeasureParams) -> EdgeFit | str:
