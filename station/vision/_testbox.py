@@ -84,11 +84,13 @@ def scan_columns(
     visited = (cols % skip) == 0
     key = np.sort(cols[visited] * h + rows[visited])  # by column, then row
     col0 = np.arange(0, w, skip, dtype=np.intp) * h
-    end = np.searchsorted(key, col0 + h)
+    per_column = np.bincount(key // (h * skip), minlength=col0.size)
+    first = np.cumsum(per_column) - per_column  # each column's first accepted pixel, if any
+    end = first + per_column
     start = np.zeros(col0.size, np.intp)
     last_key = max(key.size - 1, 0)
+    idx = first  # with every start at row 0
     while True:
-        idx = np.searchsorted(key, col0 + start)
         hit = idx < end
         row = np.where(hit, key[np.minimum(idx, last_key)] - col0, -1) if key.size else np.full(col0.size, -1)
         following = np.zeros(col0.size, np.intp)
@@ -96,6 +98,7 @@ def scan_columns(
         if np.array_equal(following, start):
             break
         start = following
+        idx = np.searchsorted(key, col0 + start)
     found = np.flatnonzero(hit)
     return np.column_stack([found * skip, row[found]]).astype(np.intp).reshape(-1, 2)
 
