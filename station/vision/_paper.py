@@ -49,16 +49,17 @@ def paper_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
             for _, _, peak in polarities
         ]
         candidates = _above(response, [lv for lv in levels if lv is not None])
+        values = response.ravel()[candidates]
         for (edge, sign, _), level in zip(polarities, levels, strict=True):
             pixels = np.zeros((0, 2), np.intp)
             if level is not None:
-                xy = candidates[response[candidates[:, 1], candidates[:, 0]] * sign > level]
+                own = candidates[values > level] if sign > 0 else candidates[values < -level]
                 pixels = segment_edge_sparse(
                     response,
                     sign,
                     edge,
                     level,
-                    xy,
+                    own,
                     testheight=params.testheight,
                     testwidth=params.testwidth,
                     skip=params.skip,
@@ -75,13 +76,11 @@ def paper_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
 
 
 def _above(response: Float32Image, levels: list[float]) -> IntArray:
-    """(N, 2) ``(x, y)`` of the pixels whose |response| exceeds the lower of ``levels``: every pixel
-    above either polarity's threshold, in one pass (each edge then keeps its own)."""
+    """Flat indices of the pixels whose |response| exceeds the lower of ``levels``: every pixel above
+    either polarity's threshold, in one pass (each edge then keeps its own)."""
     if not levels:
-        return np.zeros((0, 2), np.intp)
-    flat = np.flatnonzero(np.abs(response) > min(levels))  # row-major, as cv2.findNonZero orders them
-    y, x = np.divmod(flat, response.shape[1])
-    return np.column_stack([x, y])
+        return np.zeros(0, np.intp)
+    return np.flatnonzero(np.abs(response) > min(levels))
 
 
 def _edge_fit(gray: Gray8, pixels: IntArray, edge: Edge, params: MeasureParams) -> EdgeFit | str:

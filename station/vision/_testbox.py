@@ -168,21 +168,21 @@ def segment_edge_sparse(
 
     ``sign * response`` is the edge's operator response before its negative values are zeroed
     (``directional_responses``: ``top`` is -1 times the downward operator), ``level`` >= 0 the
-    threshold (values above it are kept, as ``apply_threshold`` keeps them) and ``candidates`` (N, 2)
-    ``(x, y)`` the pixels above it. Instead of
-    full-image running maxima (``acceptance_mask``), the three rules are checked on each candidate's
-    columns A, E and F gathered from the image; pixels below the threshold count as zero as they do
-    in the thresholded response.
+    threshold (values above it are kept, as ``apply_threshold`` keeps them) and ``candidates`` the
+    flat (row-major) indices of the pixels above it. Instead of full-image running maxima
+    (``acceptance_mask``), the three rules are checked on each candidate's columns A, E and F
+    gathered from the image; pixels below the threshold count as zero as they do in the
+    thresholded response.
     """
     h, w = response.shape
     axis, reverse = _SCAN[edge]
     # scan geometry: "across" runs along the scan (column A's direction), "along" from column to column
     n_across, n_along = (h, w) if axis == 0 else (w, h)
     s_across, s_along = (w, 1) if axis == 0 else (1, w)
-    x, y = candidates[:, 0], candidates[:, 1]
+    flat = candidates
+    y, x = np.divmod(flat, w)
     across, along = (y, x) if axis == 0 else (x, y)
     flat_img = response.ravel()
-    flat = y * w + x
     value = flat_img[flat]
     offsets = np.arange(-testheight, testheight + 1)
     steps = offsets * s_across

@@ -65,8 +65,7 @@ def _dense_and_sparse(image: np.ndarray, edge: Edge, **kw: int) -> tuple[np.ndar
     sign = -1.0 if edge in ("top", "left") else 1.0
     peak = float((response * sign).max())
     level = max(threshold_level(peak, 0.3), 0.0)
-    ys, xs = np.nonzero(response * sign > level)
-    cand = np.column_stack([xs, ys]).astype(np.intp)
+    cand = np.flatnonzero(response * sign > level)
     return dense, segment_edge_sparse(response, sign, edge, level, cand, **kw)
 
 
