@@ -130,7 +130,9 @@ def test_application_shell_reports_power_and_homing(make_twin, robot_on):
 
 
 def test_non_blocking_motion_waits_until_settled(make_twin, robot_on):
-    twin = make_twin(motion_blocks=False, time_scale=20.0, repeat_sigma_deg=0.0)
+    twin = make_twin(
+        motion_blocks=False, time_scale=20.0, repeat_sigma_deg=0.0, backlash_deg=0.0, settle_deg=0.0
+    )
     robot = robot_on(twin, shell=ShellProfile.system(motion_blocks=False))
     robot.move_joints((20.0, 0.0, 90.0, 0.0, 90.0, 0.0))
     robot.wait_settled(timeout_s=10.0)
