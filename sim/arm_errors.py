@@ -223,9 +223,11 @@ def settle_residual(start_deg: FloatArray, elapsed_s: npt.ArrayLike, time_consta
 class FlangeErrorSequence:
     """The Cartesian error (mm, base frame, 3-vector) of the flange after each motion, per seed.
 
-    ``at(k)`` is the error while the arm rests after its ``k``-th motion (``k = 0``: before any): white
-    noise of motion ``k`` + the slow drift's value at ``k`` + the thermal warm-up at ``k``. Deterministic:
-    the same ``(errors, seed, k)`` give the same vector, whatever was asked before.
+    ``at(k)`` is the error while the arm rests after its ``k``-th motion: white noise of motion ``k`` +
+    the slow drift's change since the start + the thermal warm-up at ``k``. Relative to the start
+    (``k = 0``, before any motion: zero), where the station was set up: the world places the artifact
+    where the camera looks then. Deterministic: the same ``(errors, seed, k)`` give the same vector,
+    whatever was asked before.
     """
 
     def __init__(self, errors: FlangeErrors, seed: int = 0) -> None:
@@ -255,12 +257,12 @@ class FlangeErrorSequence:
         if move < 0:
             raise ValueError(f"move must be >= 0 (motions since start), got {move}")
         e = self.errors
-        if not e.enabled:
+        if move == 0 or not e.enabled:
             return np.zeros(3)
         white = np.random.default_rng([self.seed, 1, move]).normal(size=3) * e.sigma_mm
         thermal = e.thermal_mm * (1.0 - math.exp(-move / e.thermal_moves)) * self._thermal_direction
         with self._lock:
-            drift = self._drift_at(move)
+            drift = self._drift_at(move) - self._drift_at(0)
         return np.asarray(white + drift + thermal, dtype=float)
 
 

@@ -131,9 +131,9 @@ class World:
         the arm stays at the reference pose.
     moves
         How many motions the arm has started: the flange's Cartesian error (``spec.flange_errors``)
-        takes a new value with each. By default the ``moves`` counter of the object ``joints`` is a
-        method of (the twin's arm: ``joints=twin.arm.actual_exact``), else each new joint reading
-        counts as a motion.
+        takes a new value with each. By default, when ``joints`` is a method of an object with a
+        ``moves`` counter (the twin's arm: ``joints=twin.arm.actual_exact``), that counter; else each
+        new joint reading counts as a motion.
     seed
         Seeds the flange's Cartesian error (deterministic per seed).
     """
