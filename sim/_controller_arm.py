@@ -16,6 +16,7 @@ from __future__ import annotations
 import logging
 import math
 import threading
+from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -115,6 +116,7 @@ class ArmParameters:
     start_pose_deg: tuple[float, ...]
     homing_extra_s: float
     time_scale: float
+    log_limit: int = 1000
     settle_deg: tuple[float, ...] = (0.0,) * JOINTS
     settle_time_s: float = 0.05
 
@@ -146,7 +148,7 @@ class Arm:
         self._cmd = start.copy()
         self._att = start.copy()
         self._motion: _Motion | None = None
-        self.motion_log: list[MotionRecord] = []
+        self.motion_log: deque[MotionRecord] = deque(maxlen=params.log_limit)  # the last N moves
         self.moves = 0  # motions started: the world's Cartesian error changes with each
         self._settle = np.zeros(JOINTS)  # each joint's servo residual (deg) at the end of its last motion
         self._settle_t0 = np.zeros(JOINTS)  # and when that motion ended (clock)
@@ -163,6 +165,15 @@ class Arm:
         with self._lock:
             self._update()
             return self._motion is not None
+
+    def axes_done(self) -> list[bool]:
+        """Per axis, whether it has finished moving (armstat's ``done`` column)."""
+        with self._lock:
+            self._update()
+            m = self._motion
+            if m is None:
+                return [True] * JOINTS
+            return [bool(d == 0.0) for d in (m.cmd_end - m.cmd_start)]
 
     def remaining_s(self) -> float:
         """Real seconds until the current motion ends (0 when still)."""

@@ -28,8 +28,10 @@ def test_sim_camera_grab_writes_a_frame_that_measure_measures(
 def test_camera_errors_are_specific(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     assert main(["camera", "--v4l2", "/dev/video-none", "grab", str(tmp_path / "x.png")]) == 1
     assert "no V4L2 device at /dev/video-none" in capsys.readouterr().err
-    assert main(["camera", "--sim", "--average", "2", "grab", str(tmp_path / "x.unknown")]) == 1
-    assert "cannot encode" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_info:  # refused before anything is grabbed (issue 13)
+        main(["camera", "--sim", "--average", "2", "grab", str(tmp_path / "x.unknown")])
+    assert exit_info.value.code == 2
+    assert "not a lossless format" in capsys.readouterr().err
 
 
 def test_sim_table_move_goes_through_the_operator_prompt(capsys: pytest.CaptureFixture[str]) -> None:

@@ -1,14 +1,55 @@
-"""Options shared by the measuring sub-commands."""
+"""Options shared by the measuring sub-commands, and the checks of their values (exit 2 on misuse)."""
 
 from __future__ import annotations
 
 import argparse
+import math
+from collections.abc import Callable
 
 from pydantic import ValidationError
 
-from station.batch import default_jobs
-from station.camera_model import load_camera_model
+from station.batch import default_jobs, max_jobs
+from station.camera_model import CameraModelError, load_camera_model
+from station.imageio import ImageFileError, read_file_bytes
 from station.vision import MeasureParams, parse_assignments
+from station.vision._params import allowed_range
+
+#: A camera model file is a few hundred bytes; anything far larger is not one.
+CAMERA_MODEL_MAX_BYTES = 1024 * 1024
+
+
+def bounded_int(name: str, low: int, high: int) -> Callable[[str], int]:
+    """An argparse ``type`` accepting integers from ``low`` to ``high``, naming the option otherwise."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"{name} must be a whole number from {low} to {high}, got {text!r}"
+            ) from None
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"{name} must be from {low} to {high}, got {value}")
+        return value
+
+    return parse
+
+
+def finite_float(name: str, *, positive: bool = False) -> Callable[[str], float]:
+    """An argparse ``type`` accepting finite numbers (``positive``: above 0), naming the value otherwise."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
+        if not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"{name} must be a finite number, got {text!r}")
+        if positive and value <= 0:
+            raise argparse.ArgumentTypeError(f"{name} must be above 0, got {text!r}")
+        return value
+
+    return parse
 
 
 def add_measure_options(parser: argparse.ArgumentParser) -> None:
@@ -29,25 +70,42 @@ def add_measure_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "-j",
         "--jobs",
-        type=int,
+        type=bounded_int("--jobs", 1, max_jobs()),
         default=None,
-        help=f"worker processes (default: all cores, {default_jobs()})",
+        help=f"worker processes, 1 to {max_jobs()} (default: all cores, {default_jobs()})",
     )
 
 
+def _describe(exc: ValidationError) -> str:
+    parts = []
+    for e in exc.errors(include_url=False):
+        loc = ".".join(str(p) for p in e["loc"])
+        field = str(e["loc"][0]) if e["loc"] else ""
+        where = f" (allowed: {allowed_range(field)})" if field in MeasureParams.model_fields else ""
+        value = f" = {e['input']!r}" if loc and not isinstance(e["input"], dict) else ""
+        parts.append(f"{loc}{value}: {e['msg']}{where}" if loc else str(e["msg"]))
+    return "; ".join(parts)
+
+
+def load_camera_model_file(path: str) -> tuple[list[list[float]], list[float]]:
+    """A camera model file, checked like any other input: a regular file of sensible size."""
+    try:
+        read_file_bytes(path, max_bytes=CAMERA_MODEL_MAX_BYTES, what="camera model file")
+    except ImageFileError as exc:
+        raise CameraModelError(f"--camera-model {exc}") from None
+    return load_camera_model(path)
+
+
 def params_from_args(parser: argparse.ArgumentParser, args: argparse.Namespace) -> MeasureParams:
-    """Build the parameter model; a bad --set is a usage error (exit 2) naming the parameter."""
+    """Build the parameter model; a bad --set is a usage error (exit 2) naming the value and range."""
     try:
         values: dict[str, object] = dict(parse_assignments(args.assignments))
         if args.mode is not None:
             values["mode"] = args.mode
         if getattr(args, "camera_model", None):
-            values["camera_matrix"], values["dist_coeffs"] = load_camera_model(args.camera_model)
+            values["camera_matrix"], values["dist_coeffs"] = load_camera_model_file(args.camera_model)
         return MeasureParams.model_validate(values)
     except ValueError as exc:
         if isinstance(exc, ValidationError):
-            detail = "; ".join(
-                f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in exc.errors(include_url=False)
-            )
-            parser.error(f"invalid parameter: {detail}")
+            parser.error(f"invalid parameter: {_describe(exc)}")
         parser.error(str(exc))

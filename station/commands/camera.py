@@ -4,13 +4,19 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
+import tempfile
 from typing import Any
 
 from station import config
 from station.commands import SubParsers
+from station.commands._common import bounded_int, finite_float
 from station.devices import Camera, DeviceError, ExposureAdjustable
-from station.imageio import ImageFileError, write_image
+from station.imageio import ImageFileError, check_output_path, write_image
+
+#: Most frames ``--average`` may average (a thousand 640x480 frames already take a while).
+MAX_AVERAGE = 1000
 
 
 def register(sub: SubParsers) -> None:
@@ -23,13 +29,31 @@ def register(sub: SubParsers) -> None:
     which.add_argument("--sim", action="store_true", help="the simulated flange camera")
     which.add_argument("--v4l2", metavar="DEV", help="a V4L2 frame grabber: /dev/videoN or its index")
     which.add_argument("--aravis", metavar="ID", help="a GenICam camera: Aravis device id or IP address")
-    p.add_argument("--average", type=int, default=1, metavar="N", help="average N frames into one")
-    p.add_argument("--exposure-us", type=float, default=None, help="set the exposure first (us)")
-    p.add_argument("--timeout", type=float, default=2.0, help="seconds to wait for each frame")
+    p.add_argument(
+        "--average",
+        type=bounded_int("--average", 1, MAX_AVERAGE),
+        default=1,
+        metavar="N",
+        help=f"average N frames into one (1 to {MAX_AVERAGE})",
+    )
+    p.add_argument(
+        "--exposure-us",
+        type=finite_float("--exposure-us", positive=True),
+        default=None,
+        help="set the exposure first (us)",
+    )
+    p.add_argument(
+        "--timeout",
+        type=finite_float("--timeout", positive=True),
+        default=2.0,
+        help="seconds to wait for each frame",
+    )
     p.add_argument("--json", action="store_true", help="print the frame's metadata as JSON")
     csub = p.add_subparsers(dest="camera_command", required=True, metavar="COMMAND")
-    grab = csub.add_parser("grab", help="grab one frame into OUT (PNG)")
-    grab.add_argument("out", metavar="OUT.png")
+    grab = csub.add_parser("grab", help="grab one frame into OUT (PNG or TIFF: lossless)")
+    grab.add_argument(
+        "out", metavar="OUT.png", help="output file: .png, .tif or .tiff, in an existing directory"
+    )
     p.set_defaults(func=lambda args: run(p, args))
 
 
@@ -46,20 +70,37 @@ def _build(args: argparse.Namespace) -> Camera:
     return camera
 
 
+def _keep(image: Any, exc: ImageFileError) -> str:
+    """Save a grabbed frame that could not be written where asked, so that nothing captured is lost."""
+    try:
+        fd, spare = tempfile.mkstemp(prefix="station-grab-", suffix=".png")
+        os.close(fd)
+        write_image(spare, image)
+    except (OSError, ImageFileError) as again:
+        return f"{exc}; the frame is lost (it could not be kept in the temporary directory either: {again})"
+    return f"{exc}; the frame was kept in {spare}"
+
+
 def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
-    if args.average < 1:
-        parser.error(f"--average must be at least 1, got {args.average}")
+    try:  # before anything is grabbed: a frame must never be taken only to be lost
+        check_output_path(args.out)
+    except ImageFileError as exc:
+        parser.error(str(exc))
     camera: Camera | None = None
     try:
         camera = _build(args)
-        camera.open()
+        camera.connect()
         if args.exposure_us is not None:
             if not isinstance(camera, ExposureAdjustable):
                 raise DeviceError("this camera has no exposure setting")
             camera.set_exposure_us(args.exposure_us)
         frames = camera.grab_many(args.average, average=args.average > 1, timeout_s=args.timeout)
         frame = frames[0]
-        path = write_image(args.out, frame.image)
+        try:
+            path = write_image(args.out, frame.image)
+        except ImageFileError as exc:
+            print(f"station camera: {_keep(frame.image, exc)}", file=sys.stderr)
+            return 1
     except (DeviceError, ImageFileError, ValueError) as exc:
         print(f"station camera: {exc}", file=sys.stderr)
         return 1

@@ -9,6 +9,7 @@ import threading
 
 from station import config
 from station.commands import SubParsers
+from station.commands._common import finite_float
 from station.devices import DeviceError
 from station.prompts import PromptBroker, PromptEvent
 
@@ -24,16 +25,29 @@ def register(sub: SubParsers) -> None:
     who = p.add_mutually_exclusive_group(required=True)
     who.add_argument("--sim", action="store_true", help="a simulated table and operator")
     who.add_argument("--manual", action="store_true", help="the real table; answer the prompt here")
-    p.add_argument("--timeout", type=float, default=None, help="give up after this many seconds")
+    p.add_argument(
+        "--timeout",
+        type=finite_float("--timeout", positive=True),
+        default=None,
+        help="give up after this many seconds (a finite number above 0)",
+    )
     p.add_argument("--json", action="store_true", help="print the confirmed position as JSON")
     tsub = p.add_subparsers(dest="table_command", required=True, metavar="COMMAND")
     move = tsub.add_parser("move", help="move to X_MM Y_MM")
-    move.add_argument("x_mm", type=float, metavar="X_MM")
-    move.add_argument("y_mm", type=float, metavar="Y_MM")
-    p.set_defaults(func=run)
+    move.add_argument("x_mm", type=finite_float("X_MM"), metavar="X_MM")
+    move.add_argument("y_mm", type=finite_float("Y_MM"), metavar="Y_MM")
+    p.set_defaults(func=lambda args: run(args, parser=move))
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace, parser: argparse.ArgumentParser | None = None) -> int:
+    # every input was checked by argparse (finite numbers, exit 2); the travel is checked by the
+    # table before it raises any prompt (exit 1)
+    for name in ("x_mm", "y_mm"):
+        if not isinstance(getattr(args, name), float):  # argparse skips ``type`` after a second "--"
+            message = f"{name.upper()} must be a finite number, got {getattr(args, name)!r}"
+            if parser is None:
+                raise SystemExit(f"station table: {message}")
+            parser.error(message)
     broker = PromptBroker()
 
     def show(event: PromptEvent) -> None:

@@ -23,7 +23,7 @@ from station.vision._geometry import (
     square_homography,
     vertices,
 )
-from station.vision._image import check_quality, to_gray8
+from station.vision._image import check_quality, image_bit_depth, to_gray8
 from station.vision._linefit import RecursiveFit, recursive_fit
 from station.vision._measure import measure
 from station.vision._moment import intensity_moment
@@ -35,6 +35,7 @@ from station.vision._params import (
     parse_assignments,
 )
 from station.vision._result import EdgeFit, Measurement
+from station.vision._sanity import IncompleteCrossError, MultipleCrossingsError, check_single_cross
 from station.vision._series import series_centers_mm, series_homography
 from station.vision._testbox import acceptance_mask, segment_edge, testbox_scan
 
@@ -47,11 +48,13 @@ __all__ = [
     "EdgeNotFoundError",
     "GeometryError",
     "ImageQualityError",
+    "IncompleteCrossError",
     "InvalidImageError",
     "MeasureParams",
     "Measurement",
     "MeasurementError",
     "Mode",
+    "MultipleCrossingsError",
     "RecursiveFit",
     "acceptance_mask",
     "apply_filter",
@@ -59,8 +62,10 @@ __all__ = [
     "apply_threshold",
     "centre",
     "check_quality",
+    "check_single_cross",
     "directional_responses",
     "gauss_kernel_7x7",
+    "image_bit_depth",
     "intensity_moment",
     "intersect",
     "measure",

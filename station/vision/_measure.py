@@ -7,15 +7,18 @@ import numpy as np
 from station.vision._edges import EDGES
 from station.vision._errors import EdgeNotFoundError, GeometryError, rotated_too_far
 from station.vision._geometry import centre, check_cross, square_homography, vertices
-from station.vision._image import check_quality, to_gray8
+from station.vision._image import check_quality, image_bit_depth, to_gray8
 from station.vision._orientation import dominant_rotation_deg
 from station.vision._paper import paper_edges
 from station.vision._params import MeasureParams
 from station.vision._precise import precise_edges
 from station.vision._result import Measurement
+from station.vision._sanity import check_single_cross
 
 
-def measure(image: object, params: MeasureParams | None = None) -> Measurement:
+def measure(
+    image: object, params: MeasureParams | None = None, *, significant_bits: int | None = None
+) -> Measurement:
     """Measure the crossing of the artifact's grooves in one image.
 
     Parameters
@@ -26,6 +29,9 @@ def measure(image: object, params: MeasureParams | None = None) -> Measurement:
     params : MeasureParams, optional
         Mode and parameters; default: precise mode. ``MeasureParams(mode="paper")`` is the seed's
         algorithm with Table 1's trial 7.
+    significant_bits : int, optional
+        Significant bits per sample recorded by the file (PNG's sBIT); ``params.bit_depth`` wins
+        over it, and without either a 16-bit image's depth is read from its data's range.
 
     Returns
     -------
@@ -39,7 +45,8 @@ def measure(image: object, params: MeasureParams | None = None) -> Measurement:
         GeometryError.
     """
     p = params if params is not None else MeasureParams()
-    gray = to_gray8(image)
+    bit_depth = image_bit_depth(image, p.bit_depth or significant_bits)
+    gray = to_gray8(image, bit_depth=bit_depth)
     check_quality(gray)
     if p.mode == "paper":
         try:
@@ -51,6 +58,7 @@ def measure(image: object, params: MeasureParams | None = None) -> Measurement:
     lines = {e: edges[e].line for e in EDGES}
     corners = vertices(lines)
     rotation, widths = check_cross(lines, corners, gray.shape, max_rotation_deg=p.rotation_limit_deg)
+    check_single_cross(gray, lines, corners, widths)
     H = square_homography(corners, p.groove_width_mm)
     center_mm, center_px = centre(H, p.groove_width_mm)
     return Measurement(
@@ -63,6 +71,7 @@ def measure(image: object, params: MeasureParams | None = None) -> Measurement:
         rotation_deg=rotation,
         groove_width_px=widths,
         params=p,
+        extra={"bit_depth": bit_depth},
     )
 
 

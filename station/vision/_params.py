@@ -12,7 +12,7 @@ import math
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 Mode = Literal["paper", "precise"]
 FilterKind = Literal["none", "mean", "gauss"]
@@ -26,7 +26,7 @@ SEED_GAUSS_SIGMA_PX = 1.0 / math.sqrt(2.0 * math.log(2.0))
 class MeasureParams(BaseModel):
     """Parameters of one measurement (units in each field's description)."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
     mode: Mode = Field("precise", description="algorithm: 'precise' (default) or 'paper' (the seed's)")
     filter: FilterKind = Field("none", description="FILTER, seed 3.2.1: none | mean (3x3) | gauss (7x7)")
@@ -48,11 +48,20 @@ class MeasureParams(BaseModel):
     )
     max_removals: int = Field(50, ge=0, le=10_000, description="recursive fit: most points removed, 3.2.4")
     groove_width_mm: float = Field(
-        NOMINAL_GROOVE_WIDTH_MM, gt=0, le=50, description="groove width w, the square's side (mm), 3.2.5"
+        NOMINAL_GROOVE_WIDTH_MM, ge=0.05, le=50, description="groove width w, the square's side (mm), 3.2.5"
     )
-    min_edge_points: int = Field(8, ge=3, description="fewest points that make an edge")
+    bit_depth: int | None = Field(
+        None,
+        ge=8,
+        le=16,
+        description="significant bits of 16-bit images (8-16); None = auto: PNG's sBIT, else data range",
+    )
+    min_edge_points: int = Field(8, ge=3, le=100_000, description="fewest points that make an edge")
     max_residual_px: float | None = Field(
-        None, gt=0, description="largest rms distance of an edge's points (px); None: paper 2.0, precise 0.5"
+        None,
+        gt=0,
+        le=1000,
+        description="largest rms distance of an edge's points (px); None: paper 2.0, precise 0.5",
     )
     max_rotation_deg: float | None = Field(
         None, gt=0, le=45, description="largest in-plane rotation accepted (deg); None: paper 30, precise 40"
@@ -90,6 +99,11 @@ class MeasureParams(BaseModel):
     dist_coeffs: list[float] | None = Field(
         None, description="precise: OpenCV distortion coefficients (k1 k2 p1 p2 [k3 ...])"
     )
+
+    @field_validator("bit_depth", mode="before")
+    @classmethod
+    def _auto_bit_depth(cls, value: object) -> object:
+        return None if isinstance(value, str) and value.strip().lower() in ("auto", "none") else value
 
     @model_validator(mode="after")
     def _check(self) -> MeasureParams:
@@ -147,3 +161,23 @@ def parse_assignments(assignments: list[str]) -> dict[str, str]:
             raise ValueError(f"--set {name!r}: unknown parameter; known: {', '.join(sorted(fields))}")
         out[fields[key]] = value.strip()
     return out
+
+
+def allowed_range(name: str) -> str:
+    """The allowed values of a parameter as text ('0 < threshold < 1', 'filter: none, mean, gauss')."""
+    info = MeasureParams.model_fields[name]
+    low = high = ""
+    for bound in info.metadata:
+        for attr, text in (("gt", "<"), ("ge", "<=")):
+            if getattr(bound, attr, None) is not None:
+                low = f"{getattr(bound, attr):g} {text} "
+        for attr, text in (("lt", "<"), ("le", "<=")):
+            if getattr(bound, attr, None) is not None:
+                high = f" {text} {getattr(bound, attr):g}"
+    if low or high:
+        optional = " (or auto)" if info.default is None else ""
+        return f"{low}{name}{high}, finite{optional}"
+    choices = getattr(info.annotation, "__args__", ())
+    if choices and all(isinstance(c, str) for c in choices):
+        return f"{name}: one of {', '.join(choices)}"
+    return f"{name}: see station/vision/_params.py"
