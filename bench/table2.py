@@ -6,18 +6,17 @@ error model (``sim.arm_errors.DEFAULT_ARM_ERRORS``) in truth space, for seed 0 a
 (the spread one 30-cycle session has: the seed's numbers are single sessions too).
 
 ``python -m bench.table2`` prints the table; ``python -m bench.table2 --fit`` refits the model's
-free parameters (the Cartesian floor ``sigma_mm`` and the noise of joints 1-5; joint 6's is invisible at
-the reference pose and stays assumed) by weighted least squares on log RP: residual per test
+free parameters (the Cartesian floor ``sigma_mm`` and the noise of joints 1, 3, 4, 5; joints 2 and 6
+do not move the tool point at the reference pose, their noise stays assumed) by weighted least
+squares on log RP: residual per test
 ``log(mean RP over the seeds / seed's RP) / cv``, ``cv`` the relative spread of one session's RP, with
 the same seeds at every step (common random numbers make the mean smooth in the parameters). All eight
 of the seed's numbers are data, the two sequences too: each is one session, none is exact.
 
 Two physical bounds. Above: no joint's noise alone may move the tool (the camera's origin) by more
-than the arm's rated repeatability, +/-0.05 mm (seed section 2), as RP in 3-D. It decides joint 2: the
-image barely sees it (0.5 um per mdeg), so matching the seed's J2 (0.0181 mm, one session on a
-0.016 mm floor: within that floor's spread) exactly would take 0.0095 deg, 0.2 mm RP at the tool.
-Below: a quarter of the joint's encoder count (a servo holds its motor within about a count); without
-it the floor would absorb joints 1 and 4 entirely, which Table 2 cannot tell apart either.
+than the arm's rated repeatability, +/-0.05 mm (seed section 2), as RP in 3-D. Below: a quarter of the
+joint's encoder count (a servo holds its motor within about a count); without it the floor would
+absorb joints 1 and 4 entirely, which Table 2 cannot tell apart either.
 """
 
 from __future__ import annotations
@@ -137,12 +136,17 @@ def format_table(result: dict[str, Any]) -> str:
 # --------------------------------------------------------------------------- the fit
 
 
+FREE_JOINTS = (1, 3, 4, 5)  # joints 2 and 6 do not move the tool point at the reference pose
+
+
 def _with(model: ArmErrorModel, theta: np.ndarray) -> ArmErrorModel:
-    """``theta``: log of (flange sigma_mm, joint sigma 1-5); joint 6's sigma kept."""
+    """``theta``: log of (flange sigma_mm, joint sigma of FREE_JOINTS); the others' sigma kept."""
     values = np.exp(theta)
-    sigma = (*(float(v) for v in values[1:6]), model.joints.sigma_deg[5])
+    sigma = list(model.joints.sigma_deg)
+    for j, v in zip(FREE_JOINTS, values[1:], strict=True):
+        sigma[j - 1] = float(v)
     return ArmErrorModel(
-        replace(model.joints, sigma_deg=sigma),  # type: ignore[arg-type]
+        replace(model.joints, sigma_deg=tuple(sigma)),  # type: ignore[arg-type]
         replace(model.flange, sigma_mm=float(values[0])),
     )
 
@@ -165,9 +169,11 @@ def fit(
         return np.asarray((np.log(mean) - np.log([SEED_MM[n] for n in names])) / cv)
 
     least, most = noise_bounds_deg()
-    upper = np.log([0.05, *most[:5]])
-    lower = np.log([1e-4, *least[:5]])
-    theta0 = np.clip(np.log([start.flange.sigma_mm, *start.joints.sigma_deg[:5]]), lower, upper - 1e-6)
+    free = [j - 1 for j in FREE_JOINTS]
+    upper = np.log([0.05, *most[free]])
+    lower = np.log([1e-4, *least[free]])
+    start_sigma = np.asarray(start.joints.sigma_deg)[free]
+    theta0 = np.clip(np.log([start.flange.sigma_mm, *start_sigma]), lower, upper - 1e-6)
     solution = least_squares(
         residuals, theta0, bounds=(lower, upper), diff_step=0.02, max_nfev=max_evaluations
     )

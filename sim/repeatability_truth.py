@@ -2,9 +2,11 @@
 
 The controller twin's own arm model (``ControllerTwin(...).arm``, never started: no pty) runs on an
 injected clock and the world follows it, with the flange's Cartesian error indexed by the arm's motions;
-after each return to the reference pose the capture is the world's true ``center_mm`` (what a perfect
-image measurement of that frame gives). This is what fits :mod:`sim.arm_errors` to the seed's Table 2
-and what the station's simulated sessions are compared with.
+after each return to the reference pose the capture is the world's true tool point (where the optical
+axis meets the artifact, relative to the crossing, in the artifact's axes: the position the
+repeatability plan measures, ``station/plans/repeatability.py``), what a perfect measurement gives.
+This is what fits :mod:`sim.arm_errors` to the seed's Table 2 and what the station's simulated
+sessions are compared with.
 
 Protocol (seed section 5; the repeatability plan of the sessions issue): at the world's reference pose,
 for each test, ``warmup_cycles`` uncaptured and then ``cycles`` captured cycles of "move away, come
@@ -153,7 +155,7 @@ class _Session:
         self.clock.t += self.settle_s / self.arm.params.time_scale
 
     def capture(self) -> tuple[float, float]:
-        return self.world.center_mm()
+        return self.world.center_mm(tool_point=True)
 
 
 def simulate_repeatability(
@@ -213,17 +215,22 @@ def simulate_repeatability(
 
 
 def true_centers_mm(
-    world: World, joints_deg: Sequence[Sequence[float]], moves: Sequence[int] | None = None
+    world: World,
+    joints_deg: Sequence[Sequence[float]],
+    moves: Sequence[int] | None = None,
+    *,
+    tool_point: bool = True,
 ) -> FloatArray:
-    """The true ``center_mm`` (N, 2) of captures made with the arm at ``joints_deg`` (truth, for tests).
+    """The true positions (N, 2, mm) of captures made with the arm at ``joints_deg`` (truth, for tests).
 
     ``moves``: the arm's motion count at each capture (the twin's ``arm.moves``), which indexes the
     flange's Cartesian error; None leaves that error out (the kinematics of the attained joints alone).
+    ``tool_point``: the repeatability plan's position (default), else ``center_mm`` (image origin).
     """
     if moves is not None and len(moves) != len(joints_deg):
         raise ValueError(f"moves must give one count per capture: {len(moves)} for {len(joints_deg)}")
     centres = [
-        world.center_mm_at(tuple(q), move=None if moves is None else int(moves[i]))
+        world.center_mm_at(tuple(q), move=None if moves is None else int(moves[i]), tool_point=tool_point)
         for i, q in enumerate(joints_deg)
     ]
     return np.asarray(centres, dtype=float)

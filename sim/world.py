@@ -101,14 +101,18 @@ class TableAxis:
         self.position_mm = settled - self._direction * self._backlash / 2.0
 
 
-def center_mm_of(homography: FloatArray) -> tuple[float, float]:
-    """``center_mm`` as ``station.vision.measure`` defines it, from the artifact mm -> image px homography.
+def center_mm_of(
+    homography: FloatArray, relative_to_px: tuple[float, float] = (0.0, 0.0)
+) -> tuple[float, float]:
+    """The crossing relative to the artifact point seen at pixel ``relative_to_px``, in artifact axes (mm).
 
-    The crossing (the artifact's origin) relative to the image's origin pixel (0, 0), in the artifact's
-    axes: minus the origin pixel's back-projection onto the artifact plane.
+    From the artifact mm -> image px homography: minus that pixel's back-projection onto the artifact
+    plane. At the image origin (the default) it is ``center_mm`` as ``station.vision.measure`` defines it;
+    at the principal point, the tool point the repeatability plan measures.
     """
-    origin = np.linalg.solve(np.asarray(homography, dtype=float), np.array([0.0, 0.0, 1.0]))
-    return -float(origin[0] / origin[2]), -float(origin[1] / origin[2])
+    px = np.array([relative_to_px[0], relative_to_px[1], 1.0])
+    point = np.linalg.solve(np.asarray(homography, dtype=float), px)
+    return -float(point[0] / point[2]), -float(point[1] / point[2])
 
 
 def euler_xyz(R: FloatArray) -> tuple[float, float, float]:
@@ -158,7 +162,7 @@ class World:
         self._moves = moves
         self._seen_joints: FloatArray | None = None
         self._seen_moves = 0
-        self._last_frame_center_mm: tuple[float, float] | None = None
+        self._last_frame_homography: FloatArray | None = None
         self.flange_errors = FlangeErrorSequence(self.spec.flange_errors, seed)
         tool = transform(np.eye(3), (0.0, 0.0, self.spec.tool_length_mm))
         self.kinematics = Kinematics(tool=tool)
@@ -253,28 +257,44 @@ class World:
             z_mm=float(T[2, 3]) - wd,
         )
 
-    def center_mm_at(self, joints_deg: Sequence[float], *, move: int | None = None) -> tuple[float, float]:
-        """The true ``center_mm`` the station measures with the arm at ``joints_deg`` (truth, for tests).
+    @property
+    def principal_point_px(self) -> tuple[float, float]:
+        """The image of the optical axis: the image centre (the sim camera is an ideal pinhole)."""
+        return (self.spec.camera.width - 1) / 2.0, (self.spec.camera.height - 1) / 2.0
 
-        The crossing relative to the image's origin pixel, in the artifact's axes (mm), as
-        ``station.vision.measure`` defines it, with the table where it is now and, when ``move`` is given,
-        the flange's Cartesian error after that many motions (``moves()`` at the capture).
+    def _relative_px(self, tool_point: bool) -> tuple[float, float]:
+        return self.principal_point_px if tool_point else (0.0, 0.0)
+
+    def center_mm_at(
+        self, joints_deg: Sequence[float], *, move: int | None = None, tool_point: bool = False
+    ) -> tuple[float, float]:
+        """The true position the station measures with the arm at ``joints_deg`` (truth, for tests), mm.
+
+        The crossing relative to the image's origin pixel, in the artifact's axes: ``center_mm`` as
+        ``station.vision.measure`` defines it; with ``tool_point``, relative to where the optical axis
+        meets the artifact (the repeatability plan's position: a turn about the optical axis does not
+        move it). With the table where it is now and, when ``move`` is given, the flange's Cartesian error
+        after that many motions (``moves()`` at the capture).
         """
         T = np.linalg.inv(self.camera_pose_at(joints_deg, move=move)) @ self.artifact_pose()
-        return center_mm_of(homography_for(self.pose(T), self.spec.camera))
+        return center_mm_of(homography_for(self.pose(T), self.spec.camera), self._relative_px(tool_point))
 
-    def center_mm(self) -> tuple[float, float]:
-        """The true ``center_mm`` now (see :meth:`center_mm_at`).
+    def center_mm(self, *, tool_point: bool = False) -> tuple[float, float]:
+        """The true position now (see :meth:`center_mm_at`).
 
         The arm may still be settling: for the truth of a captured frame use :meth:`last_frame_center_mm`.
         """
         move = self.moves()
-        return self.center_mm_at(tuple(self.joints_deg()), move=move)
+        return self.center_mm_at(tuple(self.joints_deg()), move=move, tool_point=tool_point)
 
-    def last_frame_center_mm(self) -> tuple[float, float] | None:
-        """The true ``center_mm`` of the last frame rendered (None before the first): a capture's truth."""
+    def last_frame_center_mm(self, *, tool_point: bool = False) -> tuple[float, float] | None:
+        """The true position (see :meth:`center_mm_at`) in the last frame rendered: a capture's truth.
+
+        None before the first frame.
+        """
         with self._lock:
-            return self._last_frame_center_mm
+            H = self._last_frame_homography
+        return None if H is None else center_mm_of(H, self._relative_px(tool_point))
 
     # ------------------------------------------------------------------ imaging
 
@@ -302,5 +322,5 @@ class World:
             rng=rng,
         )
         with self._lock:
-            self._last_frame_center_mm = center_mm_of(truth.homography)
+            self._last_frame_homography = np.array(truth.homography)
         return image, truth

@@ -46,7 +46,8 @@ def sensitivity_mm_per_deg(joint: int) -> float:
     world = World(replace(WorldSpec(), flange_errors=FlangeErrors.none()))
     q = np.array(REF)
     q[joint - 1] += 1e-4
-    return float(np.hypot(*(np.subtract(world.center_mm_at(tuple(q)), world.center_mm_at(REF))))) / 1e-4
+    before, after = world.center_mm_at(REF, tool_point=True), world.center_mm_at(tuple(q), tool_point=True)
+    return float(np.hypot(*np.subtract(after, before))) / 1e-4
 
 
 # --------------------------------------------------------------------------- Table 2
@@ -119,10 +120,10 @@ def test_backlash_is_constant_under_the_protocol_and_shows_between_approach_dire
         world = World(replace(WorldSpec(), flange_errors=FlangeErrors.none()), joints=twin.arm.actual_exact)
         clock[0] += twin.arm.move_joint(1, 5.0) + 1.0
         clock[0] += twin.arm.move_joint(1, -5.0) + 1.0  # back from above: -backlash
-        from_above = np.array(world.center_mm())
+        from_above = np.array(world.center_mm(tool_point=True))
         clock[0] += twin.arm.move_joint(1, -5.0) + 1.0
         clock[0] += twin.arm.move_joint(1, 5.0) + 1.0  # back from below: +backlash
-        from_below = np.array(world.center_mm())
+        from_below = np.array(world.center_mm(tool_point=True))
     finally:
         twin.close()
     gap = float(np.hypot(*(from_below - from_above)))
@@ -212,7 +213,7 @@ def test_the_world_follows_the_twins_motion_counter_and_true_centres_replay_capt
             assert world.moves() == twin.arm.moves
             joints.append(twin.arm.actual_exact())
             moves.append(twin.arm.moves)
-            seen.append(world.center_mm())
+            seen.append(world.center_mm(tool_point=True))
     finally:
         twin.close()
     assert_allclose(true_centers_mm(world, joints, moves), seen, atol=1e-12)
