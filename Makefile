@@ -4,7 +4,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 OUT ?= out
 
-.PHONY: setup run test lint typecheck layers pytest bench clean
+.PHONY: setup run demo test lint typecheck layers pytest bench clean
 
 $(STAMP): pyproject.toml constraints.txt tools/setup.sh tools/apt-packages.txt
 	VENV=$(VENV) bash tools/setup.sh
@@ -12,10 +12,16 @@ $(STAMP): pyproject.toml constraints.txt tools/setup.sh tools/apt-packages.txt
 
 setup: $(STAMP)
 
-# A simulated 40-position validation (the seed's section 4 pattern), measured, with the error table.
-run: setup
-	$(BIN)/station sim render-set $(OUT)/validation-nominal --pattern validation --preset nominal --seed 1 --force
-	$(BIN)/station validate $(OUT)/validation-nominal
+DATA ?= station-data
+
+# The station's main job on the simulated station: a validation session (the seed's 40 positions, the
+# simulated operator turning the micrometers) and a six-joint repeatability session, each recorded in
+# $(DATA) with its report (tables, figures, HTML); the paths are printed at the end.
+run: demo
+
+demo: setup
+	$(BIN)/station run validation --sim --data $(DATA) --report
+	$(BIN)/station run repeatability --sim --param cycles=10 --data $(DATA) --report
 
 lint: setup
 	$(BIN)/ruff check .

@@ -3,8 +3,10 @@
 On sets rendered with the ``nominal`` and ``hard`` presets (48 random poses each, and the seed's
 40-position validation pattern), one table: centre error mean/max (px and um), validation
 displacement error mean/max (um) raw (rigid fit) and parallelogram (affine fit), ms per image on one
-core; with the Cramer-Rao bound at that noise beside them (accuracy.md). Written to
-``bench/results/bench.json`` too.
+core; with the Cramer-Rao bound at that noise beside them (accuracy.md). Then speed (issue 12,
+``bench/timing.py``): each method's ms per image and its ratio to the plain-OpenCV baseline timed in
+the same rounds, and ``station measure`` throughput with one job and with all cores, each against its
+target. Written to ``bench/results/bench.json`` too.
 """
 
 from __future__ import annotations
@@ -13,18 +15,20 @@ import argparse
 import json
 import math
 import os
+import statistics
 import sys
-import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import cv2
 import numpy as np
 
 from bench.baseline import BaselineError, measure_baseline
+from bench.timing import Throughput, cores, station_throughput, time_methods
 from sim.imageset import render_random_set, render_validation_set
 from sim.presets import get_preset
 from station.imageio import read_image
@@ -56,6 +60,7 @@ def _baseline(image: np.ndarray) -> tuple[tuple[float, float], tuple[float, floa
     return px, mm, None
 
 
+FAILURES = (MeasurementError, BaselineError, cv2.error, np.linalg.LinAlgError)
 METHODS: dict[str, Method] = {
     "paper": _station(MeasureParams(mode="paper")),
     "precise": _station(MeasureParams(mode="precise")),
@@ -81,16 +86,14 @@ def crb_centre_px(preset_name: str, rows_per_edge: float = 450.0) -> float:
 
 def run_random(set_dir: Path, method: Method) -> dict[str, Any]:
     s = load_set(set_dir)
-    errors, times, failures = [], [], 0
+    errors, failures = [], 0
     for f in s.files:
         image = read_image(f)
-        t0 = time.perf_counter()
         try:
             px, _, _ = method(image)
-        except (MeasurementError, BaselineError, cv2.error, np.linalg.LinAlgError):
+        except FAILURES:
             failures += 1
             continue
-        times.append(time.perf_counter() - t0)
         truth = s.truth[f.name]
         errors.append(math.hypot(px[0] - truth.center_px[0], px[1] - truth.center_px[1]))
     e = np.array(errors) if errors else np.array([np.nan])
@@ -99,7 +102,6 @@ def run_random(set_dir: Path, method: Method) -> dict[str, Any]:
         "failures": failures,
         "center_mean_px": float(e.mean()),
         "center_max_px": float(e.max()),
-        "ms_per_image": 1000.0 * float(np.median(times)) if times else float("nan"),
     }
 
 
@@ -113,7 +115,7 @@ def run_validation(set_dir: Path, method: Method, *, series: bool) -> dict[str, 
     for i, f in enumerate(s.files):
         try:
             px, mm, c = method(read_image(f))
-        except (MeasurementError, BaselineError, cv2.error, np.linalg.LinAlgError):
+        except FAILURES:
             continue
         centers_mm.append(mm)
         centers_px.append(px)
@@ -141,6 +143,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--data", type=Path, default=Path("bench/results/data"), help="rendered sets")
     parser.add_argument("--out", type=Path, default=Path("bench/results/bench.json"))
     parser.add_argument("--count", type=int, default=48, help="random poses per preset")
+    parser.add_argument("--rounds", type=int, default=7, help="timing rounds (ranges are over these)")
+    parser.add_argument("--files", type=int, default=1000, help="PNGs for the throughput run (0: skip)")
+    parser.add_argument("--repeats", type=int, default=3, help="throughput runs per job count")
+    parser.add_argument("--speed-only", action="store_true", help="skip the accuracy runs")
     args = parser.parse_args(argv)
     cv2.setNumThreads(1)
     tune_allocator()  # as the station's command line does
@@ -153,25 +159,86 @@ def main(argv: list[str] | None = None) -> int:
         if not (val / "truth.json").exists():
             render_validation_set(val, preset=preset, seed=3, force=True)
         entry: dict[str, Any] = {"crb_center_mean_px": crb_centre_px(preset), "methods": {}}
-        for name, method in METHODS.items():
-            print(f"bench: {preset} {name} ...", file=sys.stderr)
-            row = run_random(rnd, method)
-            row["validation"] = run_validation(val, method, series=False)
-            if name == "precise":
-                row["validation_series"] = run_validation(val, method, series=True)
-            entry["methods"][name] = row
+        if not args.speed_only:
+            for name, method in METHODS.items():
+                print(f"bench: {preset} {name} ...", file=sys.stderr)
+                row = run_random(rnd, method)
+                row["validation"] = run_validation(val, method, series=False)
+                if name == "precise":
+                    row["validation_series"] = run_validation(val, method, series=True)
+                entry["methods"][name] = row
+        print(f"bench: {preset} timing ({args.rounds} rounds) ...", file=sys.stderr)
+        images = [read_image(f) for f in load_set(rnd).files]  # decoded once: decode excluded
+        speed = time_methods(
+            images, METHODS, baseline="opencv-baseline", failures=FAILURES, rounds=args.rounds
+        )
+        entry["speed"] = {name: row.to_json() for name, row in speed.items()}
         results["presets"][preset] = entry
+    throughput = None
+    if args.files > 0:
+        many = args.data / f"random-nominal-{args.files}"
+        if not (many / "truth.json").exists():
+            print(f"bench: rendering {args.files} images for the throughput run ...", file=sys.stderr)
+            render_random_set(many, preset="nominal", count=args.files, seed=11, force=True)
+        print(f"bench: station measure throughput, --jobs 1 and --jobs {cores()} ...", file=sys.stderr)
+        throughput = station_throughput(load_set(many).files, jobs=cores(), repeats=args.repeats)
+        results["throughput"] = throughput.to_json()
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(results, indent=2))
-    print(render_table(results))
+    if not args.speed_only:
+        print(render_table(results))
+    print()
+    print(render_speed(results, throughput))
     print(f"\n(written to {args.out})")
     return 0
+
+
+#: Issue 12's targets: ratio of ms per image to the baseline's (same run), at most.
+RATIO_TARGETS = {"precise": 0.10, "paper": 0.30}
+#: files/s with --jobs <cores> at least this fraction of cores x files/s with --jobs 1.
+EFFICIENCY_TARGET = 0.8
+
+
+def _verdict(value: float, target: float, *, at_most: bool) -> str:
+    ok = value <= target if at_most else value >= target
+    if ok:
+        return "met"
+    return f"missed by {value / target:.2f}x" if at_most else f"missed ({value:.2f} < {target})"
+
+
+def render_speed(results: dict[str, Any], throughput: Throughput | None) -> str:
+    """Ms per image and ratios to the baseline (ranges over the rounds), throughput, targets."""
+    head = (
+        f"{'preset':8} {'method':16} {'ms/img (range)':>16} {'x baseline (range)':>22} {'median':>7}  target"
+    )
+    lines = [head, "-" * len(head)]
+    for preset, entry in results["presets"].items():
+        for name, row in entry["speed"].items():
+            lo, hi = row["ms_range"]
+            rlo, rhi = row["ratio_range"]
+            med = row["ratio_median"]
+            target = RATIO_TARGETS.get(name)
+            verdict = f"<= {target:.2f}: {_verdict(med, target, at_most=True)}" if target else ""
+            lines.append(
+                f"{preset:8} {name:16} {lo:7.2f} - {hi:5.2f} {rlo:11.3f} - {rhi:6.3f} {med:7.3f}  {verdict}"
+            )
+    if throughput is not None:
+        eff = throughput.efficiency
+        s, p = throughput.single, throughput.parallel
+        med = statistics.median(eff)
+        lines.append(
+            f"\nstation measure, {throughput.files} PNGs (start-up included): --jobs 1 "
+            f"{min(s):.0f}-{max(s):.0f} files/s, --jobs {throughput.jobs} {min(p):.0f}-{max(p):.0f} files/s; "
+            f"efficiency {min(eff):.2f}-{max(eff):.2f} (median {med:.2f}; target >= {EFFICIENCY_TARGET}: "
+            f"{_verdict(med, EFFICIENCY_TARGET, at_most=False)})"
+        )
+    return "\n".join(lines)
 
 
 def render_table(results: dict[str, Any]) -> str:
     head = (
         f"{'preset':8} {'method':28} {'centre mean/max px':>20} {'centre mean/max um':>20} "
-        f"{'raw mean/max um':>18} {'parallelogram um':>18} {'ms/img':>7}"
+        f"{'raw mean/max um':>18} {'parallelogram um':>18}"
     )
     lines = [head, "-" * len(head)]
     for preset, entry in results["presets"].items():
@@ -186,8 +253,7 @@ def render_table(results: dict[str, Any]) -> str:
                     f"{row['center_mean_px']:9.4f} /{row['center_max_px']:8.4f} "
                     f"{row['center_mean_px'] * UM_PER_PX:9.3f} /{row['center_max_px'] * UM_PER_PX:8.3f} "
                     f"{v['raw_mean_um']:8.3f} /{v['raw_max_um']:7.3f} "
-                    f"{v['parallelogram_mean_um']:8.3f} /{v['parallelogram_max_um']:7.3f} "
-                    f"{row['ms_per_image']:7.2f}"
+                    f"{v['parallelogram_mean_um']:8.3f} /{v['parallelogram_max_um']:7.3f}"
                 )
         crb = entry["crb_center_mean_px"]
         lines.append(

@@ -15,6 +15,7 @@ from __future__ import annotations
 import logging
 import math
 import threading
+from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -113,6 +114,7 @@ class ArmParameters:
     start_pose_deg: tuple[float, ...]
     homing_extra_s: float
     time_scale: float
+    log_limit: int = 1000
 
 
 class Arm:
@@ -142,7 +144,7 @@ class Arm:
         self._cmd = start.copy()
         self._att = start.copy()
         self._motion: _Motion | None = None
-        self.motion_log: list[MotionRecord] = []
+        self.motion_log: deque[MotionRecord] = deque(maxlen=params.log_limit)  # the last N moves
 
     # ---------------------------------------------------------------- reading
 
@@ -156,6 +158,15 @@ class Arm:
         with self._lock:
             self._update()
             return self._motion is not None
+
+    def axes_done(self) -> list[bool]:
+        """Per axis, whether it has finished moving (armstat's ``done`` column)."""
+        with self._lock:
+            self._update()
+            m = self._motion
+            if m is None:
+                return [True] * JOINTS
+            return [bool(d == 0.0) for d in (m.cmd_end - m.cmd_start)]
 
     def remaining_s(self) -> float:
         """Real seconds until the current motion ends (0 when still)."""

@@ -7,9 +7,11 @@
 * ``disconnect``: the pty disappears (cable pulled); it comes back on a new pty after
   ``replug_after_s`` (the twin's stable link path follows it), or when ``replug()`` is called.
 * ``slow``: the reply (and prompt) come ``delay_s`` late.
+* ``servo``: the motion starts, then at ``fraction`` of its duration the arm stops and the robot server
+  prints ``/sbin/robotsrv: <text> (error code 0x...)`` unprompted [the form: inferred].
 
 On the command line: ``KIND@N[:VALUE]`` (``garble@2``, ``slow@1:1.5``, ``error@3:007 Arm power is OFF``,
-``disconnect@1:0.5``).
+``disconnect@1:0.5``, ``servo@2:Excessive lag error on axis 1``).
 """
 
 from __future__ import annotations
@@ -25,9 +27,11 @@ class FaultKind(StrEnum):
     ERROR = "error"
     DISCONNECT = "disconnect"
     SLOW = "slow"
+    SERVO = "servo"
 
 
 DEFAULT_ERROR_TEXT = "007 Arm power is OFF"
+DEFAULT_SERVO_TEXT = "Excessive lag error on axis 1"
 
 
 class Fault(BaseModel):
@@ -37,7 +41,10 @@ class Fault(BaseModel):
 
     kind: FaultKind
     at: int = Field(1, ge=1, description="the Nth command line received (counted from injection)")
-    text: str = Field(DEFAULT_ERROR_TEXT, description="error: the controller's text (lines split on \\n)")
+    text: str | None = Field(
+        None, description="error, servo: the controller's text (lines split on \\n); None: the default"
+    )
+    fraction: float = Field(0.5, gt=0, lt=1, description="servo: when, as a fraction of the motion")
     delay_s: float = Field(1.0, ge=0, description="slow: how late the reply comes (real seconds)")
     execute: bool = Field(True, description="garble, drop, slow: whether the command still runs")
     replug_after_s: float | None = Field(None, ge=0, description="disconnect: back after this (real seconds)")
@@ -58,7 +65,7 @@ def parse_fault(spec: str) -> Fault:
         raise ValueError(f"fault {spec!r}: N in KIND@N must be a whole number") from None
     fields: dict[str, object] = {"kind": kind, "at": at}
     if value:
-        if kind is FaultKind.ERROR:
+        if kind in (FaultKind.ERROR, FaultKind.SERVO):
             fields["text"] = value.replace("\\n", "\n")
         elif kind is FaultKind.SLOW:
             fields["delay_s"] = float(value)
@@ -76,4 +83,4 @@ def garble(lines: list[str]) -> list[str]:
     return ["".join(chr(ord(c) | 0x80) if i % 3 == 1 else c for i, c in enumerate(line)) for line in lines]
 
 
-__all__ = ["DEFAULT_ERROR_TEXT", "Fault", "FaultKind", "garble", "parse_fault"]
+__all__ = ["DEFAULT_ERROR_TEXT", "DEFAULT_SERVO_TEXT", "Fault", "FaultKind", "garble", "parse_fault"]

@@ -18,8 +18,10 @@ import numpy as np
 
 from sim.world import World
 from station.devices import (
+    Camera,
     CameraStatus,
     DeviceConnectionError,
+    DeviceIdentity,
     DeviceTimeoutError,
     Frame,
     InvalidSettingError,
@@ -60,6 +62,7 @@ class SimCamera:
     ) -> None:
         self.world = world
         self._rng = np.random.default_rng(seed)
+        self._seed = seed
         self._clock = clock
         self._sleep = sleep
         self._lock = threading.Lock()
@@ -76,14 +79,20 @@ class SimCamera:
 
     # ------------------------------------------------------------------ Camera
 
-    def open(self) -> None:
+    def connect(self) -> None:
         self._open = True
 
     def close(self) -> None:
         self._open = False
 
+    def identity(self) -> DeviceIdentity:
+        """The simulated camera, its world's preset and seed."""
+        return DeviceIdentity(
+            model=self.model, serial=f"sim-{self._seed}", port="in-process", firmware=self.world.spec.preset
+        )
+
     def __enter__(self) -> SimCamera:
-        self.open()
+        self.connect()
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -91,7 +100,7 @@ class SimCamera:
 
     def grab(self, timeout_s: float = 2.0) -> Frame:
         if not self._open:
-            raise DeviceConnectionError("the simulated camera is not open: call open() first")
+            raise DeviceConnectionError("the simulated camera is not open: call connect() first")
         with self._lock:
             if self._frame_rate_hz > 0:
                 now = self._clock()
@@ -163,8 +172,6 @@ class SimCamera:
         return self._frame_rate_hz
 
 
-def open_sim_camera(*, world: World | None = None, seed: int = 0, frame_rate_hz: float = 30.0) -> SimCamera:
-    """Device factory (``camera.sim``): a simulated camera, in a fresh simulated world unless given one."""
-    camera = SimCamera(world or World(), seed=seed, frame_rate_hz=frame_rate_hz)
-    camera.open()
-    return camera
+def open_sim_camera(*, world: World | None = None, seed: int = 0, frame_rate_hz: float = 30.0) -> Camera:
+    """Device factory (``camera.sim``): an unconnected simulated camera, in a fresh world unless given one."""
+    return SimCamera(world or World(), seed=seed, frame_rate_hz=frame_rate_hz)

@@ -2,13 +2,20 @@
 
 The twin owns the master side of a pty (``pty.openpty``); a driver opens the slave path (``port``)
 with pyserial exactly as it would open ``/dev/ttyS0``. It echoes what is typed, prints the prompt,
-answers in the dialect of docs/crs-c500c-protocol.md (``sim._controller_shell``), moves a simulated
-arm in time (``sim._controller_arm``) and injects faults on request (``sim._controller_faults``).
+answers in the C500C's dialect (``sim._controller_shell``; drivers/crs_a465/DIALECT.md), moves a
+simulated arm in time (``sim._controller_arm``) and injects faults on request (``sim._controller_faults``).
+
+By default it behaves as the firmware does: ``joint`` and ``ready`` give the prompt back at once while
+the arm moves on; a motion command typed while another runs is held until that one ends; ``home``
+waits; Ctrl-C does not stop a motion (the shell ignores SIGINT: the byte stays in the line being typed
+[inferred]); Ctrl-Z halts the robot with the robot server's message. ``motion_blocks=True`` is the
+older blocking behaviour (the prompt comes when the motion ends), ``ctrl_c_stops=True`` the older Ctrl-C.
 
 Start one in-process::
 
     with start_twin(time_scale=100, seed=1) as twin:
         robot = station.config.build("robot", "crs_a465", port=twin.port)
+        robot.connect()
 
 or as a process shared by several programs: ``station sim controller`` prints the port path.
 """
@@ -24,6 +31,7 @@ import tempfile
 import threading
 import time
 import tty
+from collections import deque
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal
@@ -32,7 +40,14 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from sim._controller_arm import Arm, ArmParameters, MotionRecord
-from sim._controller_faults import Fault, FaultKind, garble, parse_fault
+from sim._controller_faults import (
+    DEFAULT_ERROR_TEXT,
+    DEFAULT_SERVO_TEXT,
+    Fault,
+    FaultKind,
+    garble,
+    parse_fault,
+)
 from sim._controller_shell import Outcome, Shell
 from station.kinematics import A465_JOINT_LIMITS_DEG, Kinematics
 
@@ -41,6 +56,8 @@ log = logging.getLogger(__name__)
 Six = tuple[float, float, float, float, float, float]
 CTRL_C = 0x03
 CTRL_E = 0x05
+CTRL_Z = 0x1A
+SERVER = "/sbin/robotsrv"
 
 
 def _six(value: Any) -> Any:
@@ -51,14 +68,19 @@ def _six(value: Any) -> Any:
 
 
 class TwinSettings(BaseModel):
-    """How the twin behaves. Speeds, accelerations and encoder counts per the protocol doc [A]."""
+    """How the twin behaves. Speeds, accelerations and encoder counts: drivers/crs_a465/DIALECT.md [A]."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
     shell: Literal["system", "application"] = "system"
     app_name: str = Field("ash", pattern=r"^\S+$")
     echo: bool = True
-    motion_blocks: bool = Field(True, description="the prompt returns when the motion ends [A]")
+    motion_blocks: bool = Field(
+        False,
+        description="False: the firmware's behaviour (prompt at once); True: prompt when the motion ends",
+    )
+    ctrl_c_stops: bool = Field(False, description="True: Ctrl-C stops a motion (not the firmware's) [A]")
+    log_limit: int = Field(1000, ge=1, description="received lines and motions kept (the last N)")
     time_scale: float = Field(1.0, gt=0, description="100 runs every motion 100x faster than real")
     seed: int | None = Field(None, description="random repeatability error; None: fresh entropy")
     power: bool = True
@@ -119,6 +141,7 @@ class ControllerTwin:
             start_pose_deg=s.start_pose_deg or s.ready_pose_deg,
             homing_extra_s=s.homing_extra_s,
             time_scale=s.time_scale,
+            log_limit=s.log_limit,
         )
         self.arm = Arm(
             params,
@@ -132,7 +155,7 @@ class ControllerTwin:
         self.shell = Shell(self.arm, kind=s.shell, app_name=s.app_name)
         self._clock = clock
         self._lock = threading.Lock()
-        self.received: list[str] = []
+        self._received: deque[str] = deque(maxlen=s.log_limit)
         self._commands_seen = 0
         self._faults: list[tuple[int, Fault]] = [(f.at, f) for f in s.faults]
         self._master: int | None = None
@@ -151,6 +174,7 @@ class ControllerTwin:
         self._line = bytearray()
         self._inbox = bytearray()
         self._last_was_cr = False
+        self._scheduled: tuple[float, str] | None = None  # (monotonic time, robot-server error text)
 
     # ---------------------------------------------------------------- lifecycle
 
@@ -209,8 +233,14 @@ class ControllerTwin:
 
     @property
     def motion_log(self) -> list[MotionRecord]:
-        """Every move the arm executed, as commanded."""
+        """The last ``log_limit`` moves the arm executed, as commanded."""
         return list(self.arm.motion_log)
+
+    @property
+    def received(self) -> list[str]:
+        """The last ``log_limit`` command lines received (control bytes kept)."""
+        with self._lock:
+            return list(self._received)
 
     # ---------------------------------------------------------------- control from outside
 
@@ -338,22 +368,53 @@ class ControllerTwin:
                 return None
         return None
 
+    def _halt_keys(self) -> set[int]:
+        return {CTRL_Z, CTRL_C} if self.settings.ctrl_c_stops else {CTRL_Z}
+
     def _sleep(self, seconds: float) -> bool:
-        """Sleep, watching the line for Ctrl-C; True when interrupted. Other bytes wait as type-ahead."""
+        """Sleep, watching the line for a halt key; True when halted. Other bytes wait as type-ahead.
+
+        A scheduled robot-server error (fault ``servo``) fires during the sleep and ends it (True).
+        """
         deadline = time.monotonic() + seconds
+        keys = self._halt_keys()
         while not self._closing.is_set():
+            if self._fire_scheduled():
+                return True
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 return False
+            if self._scheduled is not None:
+                remaining = min(remaining, max(0.0, self._scheduled[0] - time.monotonic()))
             data = self._wait_input(remaining)
             if data:
-                if CTRL_C in data:
-                    self._inbox += data[data.index(CTRL_C) + 1 :]
+                hit = [i for i, b in enumerate(data) if b in keys]
+                if hit:
+                    self._inbox += data[: hit[0]] + data[hit[0] + 1 :]
+                    self._halt(data[hit[0]])
                     return True
                 self._inbox += data
             if self._master is None:
                 return False
         return False
+
+    def _halt(self, key: int) -> None:
+        """A halt key: stop the arm; Ctrl-Z makes the robot server say so [F]."""
+        self.arm.stop()
+        if key == CTRL_Z:
+            self._write(f"{SERVER}: ^Z detected - halting robot...\r\n")
+        else:
+            self._write("^C\r\n")
+
+    def _fire_scheduled(self) -> bool:
+        """Print a due robot-server error unprompted and stop the arm there; True when one fired."""
+        due = self._scheduled
+        if due is None or time.monotonic() < due[0]:
+            return False
+        self._scheduled = None
+        self.arm.stop()  # (when the twin fires late, the motion may have ended already)
+        self._write(f"{SERVER}: {due[1]} (error code 0x{0x7000 + len(due[1]):x})\r\n")
+        return True
 
     # ---------------------------------------------------------------- server
 
@@ -370,7 +431,10 @@ class ControllerTwin:
             timeout = (
                 0.2 if self._replug_at is None else max(0.0, min(0.2, self._replug_at - time.monotonic()))
             )
+            if self._scheduled is not None:
+                timeout = max(0.0, min(timeout, self._scheduled[0] - time.monotonic()))
             data = self._wait_input(timeout)
+            self._fire_scheduled()
             if data:
                 self._inbox += data
             while self._inbox and self._master is not None and not self._closing.is_set():
@@ -379,7 +443,10 @@ class ControllerTwin:
 
     def _on_byte(self, byte: int) -> None:
         echo = self.settings.echo
-        if byte == CTRL_C:
+        if byte == CTRL_Z:
+            self._halt(CTRL_Z)
+            return
+        if byte == CTRL_C and self.settings.ctrl_c_stops:
             self._line.clear()
             self.arm.stop()
             self._write("^C\r\n" + self.shell.prompt)
@@ -408,6 +475,10 @@ class ControllerTwin:
             self._line.append(byte)
             if echo:
                 self._write(chr(byte))
+        elif byte == CTRL_C:  # the shell ignores SIGINT: the byte stays in the line [inferred]
+            self._line.append(byte)
+            if echo:
+                self._write("^C")
 
     def _take_fault(self, n: int) -> Fault | None:
         with self._lock:
@@ -425,36 +496,44 @@ class ControllerTwin:
         with self._lock:
             self._commands_seen += 1
             n = self._commands_seen
-            self.received.append(line)
+            self._received.append(line)
         fault = self._take_fault(n)
         log.debug("twin <- %r (command %d%s)", line, n, f", fault {fault.kind.value}" if fault else "")
         if fault is not None and fault.kind is FaultKind.DISCONNECT:
             self._do_unplug(fault.replug_after_s)
             return
         if fault is not None and fault.kind is FaultKind.ERROR:
-            outcome = Outcome(lines=fault.text.split("\n"))
+            outcome = Outcome(lines=(fault.text or DEFAULT_ERROR_TEXT).split("\n"))
         elif fault is not None and not fault.execute:
             outcome = Outcome()
         else:
             if self.shell.is_motion(line) and self.arm.moving() and self._sleep(self.arm.remaining_s()):
-                self.arm.stop()  # Ctrl-C while waiting for the previous motion
-                self._write("^C\r\n" + prompt)
+                # halted while this command was held behind the previous motion [A]
+                self._write(f"{line.split()[0]}: Halt() command invoked\r\n{prompt}")
                 return
             outcome = self.shell.execute(line)
+        if fault is not None and fault.kind is FaultKind.SERVO and outcome.is_motion and outcome.motion_s > 0:
+            text = fault.text or DEFAULT_SERVO_TEXT
+            self._scheduled = (time.monotonic() + outcome.motion_s * fault.fraction, text)
         lines = outcome.lines
         if fault is not None and fault.kind is FaultKind.GARBLE:
             lines = garble(lines)
-        if fault is not None and fault.kind is FaultKind.SLOW and self._sleep(fault.delay_s):
-            self.arm.stop()
-            lines = [*lines, "^C"]
+        if fault is not None and fault.kind is FaultKind.SLOW:
+            self._sleep(fault.delay_s)
         if fault is not None and fault.kind is FaultKind.DROP:
             return
         for text in lines:
             self._write(text + "\r\n")
-        blocks = outcome.is_motion and self.settings.motion_blocks and outcome.motion_s > 0
-        if blocks and self._sleep(outcome.motion_s):
-            self.arm.stop()
-            self._write("^C\r\n")
+        blocks = outcome.is_motion and (self.settings.motion_blocks or outcome.waits) and outcome.motion_s > 0
+        halted = blocks and self._sleep(outcome.motion_s)
+        if not halted:
+            after = (
+                garble(outcome.after)
+                if fault is not None and fault.kind is FaultKind.GARBLE
+                else outcome.after
+            )
+            for text in after:
+                self._write(text + "\r\n")
         self._write(prompt)
 
 

@@ -30,7 +30,8 @@ def handle(args: argparse.Namespace) -> int:
         "app_name": args.app_name,
         "time_scale": args.time_scale,
         "seed": args.seed,
-        "motion_blocks": not args.non_blocking,
+        "motion_blocks": args.blocking,
+        "ctrl_c_stops": args.ctrl_c_stops,
         "power": not args.power_off,
         "homed": not args.not_homed,
         "link": args.link,
@@ -76,7 +77,16 @@ def register(sim_sub: argparse._SubParsersAction) -> None:  # type: ignore[type-
     parser.add_argument(
         "--repeat-sigma", type=float, default=None, metavar="DEG", help="random error per joint"
     )
-    parser.add_argument("--non-blocking", action="store_true", help="prompt returns before motions end")
+    parser.add_argument(
+        "--blocking",
+        action="store_true",
+        help="the prompt returns when a motion ends (default: at once, as the firmware does)",
+    )
+    parser.add_argument(
+        "--ctrl-c-stops",
+        action="store_true",
+        help="Ctrl-C stops a motion (default: ignored, only Ctrl-Z halts)",
+    )
     parser.add_argument("--power-off", action="store_true", help="start with arm power off")
     parser.add_argument("--not-homed", action="store_true", help="start not homed")
     parser.add_argument(
@@ -87,7 +97,7 @@ def register(sim_sub: argparse._SubParsersAction) -> None:  # type: ignore[type-
         action="append",
         default=[],
         metavar="KIND@N[:VALUE]",
-        help="garble, drop, error, disconnect or slow on the Nth command (repeatable)",
+        help="garble, drop, error, disconnect, slow or servo on the Nth command (repeatable)",
     )
     parser.add_argument("--json", action="store_true", help='print {"port": ..., "pty": ...}')
     parser.set_defaults(func=handle)

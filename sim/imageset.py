@@ -45,6 +45,7 @@ from sim.artifact import (
 from sim.presets import NoisePreset, get_preset
 from station.imagesets import DISPLACEMENTS, TRUTH, read_displacements
 from station.imagesets import ImageSetError as StationImageSetError
+from station.patterns import STEP_UM, STEPS_PER_SIDE, validation_pattern_um
 
 __all__ = [
     "FORMAT",
@@ -66,8 +67,6 @@ FORMAT = "station-imageset/1"
 TRUTH_FILE = TRUTH
 DISPLACEMENTS_FILE = DISPLACEMENTS
 DISPLACEMENTS_HEADER = ("file", "dx_um", "dy_um")
-STEP_UM = 25.4 * 1000 * 0.0002  # 5.08 um: the table micrometers' 0.0002 in
-STEPS_PER_SIDE = 10
 EDGE_MARGIN_PX = 40.0  # random sets: every corner at least this far inside the frame
 
 
@@ -144,23 +143,6 @@ class ImageSetTruth:
 def image_name(index: int) -> str:
     """File name of image ``index``: ``img_000.png`` ..."""
     return f"img_{index:03d}.png"
-
-
-def validation_pattern_um(
-    step_um: float = STEP_UM, steps_per_side: int = STEPS_PER_SIDE
-) -> list[tuple[float, float]]:
-    """Commanded table positions of the seed's square path (Figure 13), um, table axes.
-
-    Start at (0, 0), then ``steps_per_side`` steps each of +x, +y, -x, -y; the return to the start
-    is not repeated: ``4 * steps_per_side`` positions (40 by default, a 50.8 um square).
-    """
-    n = steps_per_side
-    pts: list[tuple[int, int]] = [(0, 0)]
-    for dx, dy in ((1, 0), (0, 1), (-1, 0), (0, -1)):
-        for _ in range(n):
-            x, y = pts[-1]
-            pts.append((x + dx, y + dy))
-    return [(x * step_um, y * step_um) for x, y in pts[:-1]]
 
 
 def _prepare(out_dir: Path, force: bool) -> None:

@@ -14,6 +14,8 @@ from sim.camera import SimCamera
 from sim.controller import ControllerTwin
 from sim.operator import SimOperator
 from sim.world import World, WorldSpec
+from station.config import CameraConfig, RobotConfig, StationConfig, StationDevices, TableConfig, build
+from station.devices import Robot, XYTable
 from station.prompts import PromptBroker
 
 
@@ -37,6 +39,7 @@ class SimStation:
         seed: int = 0,
         operator_delay_s: float = 0.0,
         camera_frame_rate_hz: float = 0.0,
+        table_origin_in: tuple[float, float] = (0.0, 0.0),
         **twin_options: Any,
     ) -> None:
         world_spec = spec or WorldSpec()
@@ -46,7 +49,9 @@ class SimStation:
         self.world = World(world_spec, joints=self.twin.arm.actual_exact)
         self.camera = SimCamera(self.world, seed=seed, frame_rate_hz=camera_frame_rate_hz)
         self.broker = PromptBroker()
-        self.operator = SimOperator(self.broker, self.world, delay_s=operator_delay_s).start()
+        self.operator = SimOperator(
+            self.broker, self.world, origin_in=table_origin_in, delay_s=operator_delay_s
+        ).start()
 
     @property
     def port(self) -> str:
@@ -63,3 +68,75 @@ class SimStation:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+#: Micrometer readings (in) at table position (0, 0) mm in the simulated station: mid-travel, so that a
+#: pattern can be approached from either side.
+SIM_TABLE_ORIGIN_IN = (0.5, 0.5)
+
+
+def sim_safety(world: World) -> dict[str, Any]:
+    """Safety limits that match the simulated world: the artifact plane is the table plane, the camera's
+    front is the tool point, and it must stay 40 mm above the artifact (it works at 68 mm)."""
+    return {
+        "table_z_mm": float(world.artifact_pose()[2, 3]),
+        "camera_offset_mm": (0.0, 0.0, float(world.spec.tool_length_mm)),
+        "min_camera_height_mm": 40.0,
+        "max_step_deg": 30.0,
+    }
+
+
+def build_sim_station(
+    *,
+    spec: WorldSpec | None = None,
+    seed: int = 0,
+    time_scale: float = 100.0,
+    operator_delay_s: float = 0.0,
+    operator: bool = True,
+    **twin_options: Any,
+) -> StationDevices:
+    """Device factory (``station.sim``): the whole simulated station, built but not connected.
+
+    The controller twin runs on its pty and the real CRS driver talks to it; the camera renders the
+    world; the manual table's prompts go to the station's broker, answered by the simulated operator
+    (``operator=False``: by a person through the API, the world's micrometers then follow what they
+    confirm). ``truth`` is the :class:`SimStation` (tests and benchmarks only).
+    """
+    sim = SimStation(
+        spec,
+        seed=seed,
+        time_scale=time_scale,
+        operator_delay_s=operator_delay_s,
+        table_origin_in=SIM_TABLE_ORIGIN_IN,
+        **twin_options,
+    )
+    try:
+        if not operator:
+            sim.operator.close()
+        safety = sim_safety(sim.world)
+        reference = tuple(float(a) for a in sim.world.spec.reference_joints_deg)
+        config = StationConfig(
+            name="sim",
+            robot=RobotConfig(
+                driver="crs_a465",
+                options={"port": sim.port},
+                safety=safety,
+                reference_joints_deg=reference,
+            ),
+            camera=CameraConfig(driver="sim", options={"seed": seed}),
+            table=TableConfig(driver="manual", options={"origin_in": SIM_TABLE_ORIGIN_IN}, prompts="api"),
+        )
+        robot: Robot = build("robot", "crs_a465", port=sim.port, safety=safety)
+        table: XYTable = build("table", "manual", broker=sim.broker, origin_in=SIM_TABLE_ORIGIN_IN)
+    except BaseException:
+        sim.close()
+        raise
+    return StationDevices(
+        config=config,
+        camera=sim.camera,
+        broker=sim.broker,
+        robot=robot,
+        table=table,
+        owned=[sim],
+        truth=sim,
+    )

@@ -7,10 +7,21 @@ so that the core never imports them (architecture.md, direction of dependencies)
 
 from __future__ import annotations
 
+import inspect
 import logging
-from collections.abc import Callable
+import math
+import tomllib
+from collections.abc import Callable, Mapping
+from dataclasses import asdict, dataclass, field
 from importlib.metadata import entry_points
-from typing import Any
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+
+from station._pydantic import problems as describe
+from station.devices import Camera, Robot, XYTable
+from station.prompts import PromptBroker
 
 log = logging.getLogger(__name__)
 
@@ -47,4 +58,207 @@ def factory(kind: str, name: str) -> Callable[..., Any]:
 def build(kind: str, name: str, /, **options: Any) -> Any:
     """Build the device ``KIND.NAME`` with keyword ``options``."""
     log.debug("building %s.%s with %s", kind, name, sorted(options))
-    return factory(kind, name)(**options)
+    make = factory(kind, name)
+    try:
+        inspect.signature(make).bind(**options)
+    except TypeError as exc:
+        raise ConfigurationError(f"{kind}.{name}: bad options {sorted(options)}: {exc}") from exc
+    except ValueError:  # no signature to check (a builtin): let the call say it
+        pass
+    return make(**options)
+
+
+# --------------------------------------------------------------------------- the station configuration
+
+
+class DeviceConfig(BaseModel):
+    """One device: the registered driver (``KIND.DRIVER`` in ``station.devices``) and its options."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    driver: str = Field(min_length=1, description="registered name, e.g. crs_a465, aravis, v4l2, manual")
+    options: dict[str, Any] = Field(default_factory=dict, description="keyword arguments of its factory")
+
+
+class RobotConfig(DeviceConfig):
+    """The arm: driver, options, safety limits (the driver's fields) and the session's reference pose."""
+
+    safety: dict[str, Any] = Field(default_factory=dict, description="the driver's safety-limit fields")
+    reference_joints_deg: tuple[float, float, float, float, float, float] = Field(
+        description="the pose where the camera sees the artifact's crossing (deg)"
+    )
+
+    @field_validator("reference_joints_deg")
+    @classmethod
+    def _finite(cls, v: tuple[float, ...]) -> tuple[float, ...]:
+        if not all(math.isfinite(a) for a in v):
+            raise ValueError(f"reference_joints_deg must be finite angles, got {v}")
+        return v
+
+
+class CameraConfig(DeviceConfig):
+    """The flange camera, with an optional camera model (intrinsics and distortion) for undistortion."""
+
+    camera_model: Path | None = Field(None, description="JSON or OpenCV YAML/XML camera model file")
+
+
+class TableConfig(DeviceConfig):
+    """The X-Y table; ``prompts`` says who answers the manual table's prompts when run from the CLI."""
+
+    prompts: Literal["terminal", "api"] = "terminal"
+
+
+class StationConfig(BaseModel):
+    """A station configuration file (TOML), e.g.::
+
+        name = "a465-lab-1"
+        data_dir = "/srv/station-data"
+
+        [robot]
+        driver = "crs_a465"
+        options = { port = "/dev/ttyS0" }
+        safety = { max_step_deg = 20, table_z_mm = 0, min_camera_height_mm = 40 }
+        reference_joints_deg = [0, 30, 60, 0, 90, 0]
+
+        [camera]
+        driver = "aravis"
+        options = { camera_id = "Basler-12345" }
+        camera_model = "camera.json"
+
+        [table]
+        driver = "manual"
+        options = { x_travel_in = [0, 1], y_travel_in = [0, 1], origin_in = [0.5, 0.5] }
+
+        [measure]
+        mode = "precise"
+
+    Relative paths are taken from the file's folder.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    name: str = Field("station", min_length=1)
+    data_dir: Path | None = None
+    database: str | None = Field(None, description="SQLAlchemy URL; default SQLite in the data directory")
+    robot: RobotConfig | None = None
+    camera: CameraConfig
+    table: TableConfig | None = None
+    measure: dict[str, Any] = Field(default_factory=dict, description="measurement parameters (--set)")
+    scale_calibration: Path | None = Field(None, description="a scale calibration JSON file")
+
+    def snapshot(self) -> dict[str, Any]:
+        """JSON-ready copy for the record, with anything that looks like a secret redacted."""
+        return redact(self.model_dump(mode="json"))
+
+
+SECRET_WORDS = ("password", "secret", "token", "key")
+
+
+def redact(value: Any) -> Any:
+    """A copy of ``value`` with every mapping entry whose name suggests a secret replaced by ``***``."""
+    if isinstance(value, Mapping):
+        return {
+            k: ("***" if any(w in str(k).lower() for w in SECRET_WORDS) else redact(v))
+            for k, v in value.items()
+        }
+    if isinstance(value, list | tuple):
+        return [redact(v) for v in value]
+    if isinstance(value, str) and "://" in value and "@" in value:
+        scheme, rest = value.split("://", 1)
+        creds, host = rest.rsplit("@", 1)
+        return f"{scheme}://{creds.split(':', 1)[0]}:***@{host}" if ":" in creds else value
+    return value
+
+
+def load_config(path: str | Path) -> StationConfig:
+    """Read and validate a station configuration file; ConfigurationError says what is wrong and where."""
+    p = Path(path)
+    try:
+        with p.open("rb") as f:
+            raw = tomllib.load(f)
+    except FileNotFoundError as exc:
+        raise ConfigurationError(f"{p}: no such configuration file") from exc
+    except OSError as exc:
+        raise ConfigurationError(f"{p}: cannot read: {exc.strerror or exc}") from exc
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigurationError(f"{p}: not valid TOML: {exc}") from exc
+    try:
+        config = StationConfig.model_validate(raw)
+    except ValidationError as exc:
+        problems = describe(exc, "(top level)")
+        raise ConfigurationError(f"{p}: {problems}") from exc
+    base = p.resolve().parent
+    updates: dict[str, Any] = {}
+    if config.data_dir is not None and not config.data_dir.is_absolute():
+        updates["data_dir"] = base / config.data_dir
+    if config.scale_calibration is not None and not config.scale_calibration.is_absolute():
+        updates["scale_calibration"] = base / config.scale_calibration
+    if config.camera.camera_model is not None and not config.camera.camera_model.is_absolute():
+        updates["camera"] = config.camera.model_copy(
+            update={"camera_model": base / config.camera.camera_model}
+        )
+    return config.model_copy(update=updates) if updates else config
+
+
+# --------------------------------------------------------------------------- devices for a session
+
+
+@dataclass
+class StationDevices:
+    """Everything a session drives, built but not connected (the runner connects and closes them).
+
+    ``owned`` are further things to close after the devices (a simulated world's twins, prompt
+    clients), last first. ``truth`` is for tests and benchmarks only (a simulated station's world);
+    the runner and plans never read it.
+    """
+
+    config: StationConfig
+    camera: Camera
+    broker: PromptBroker
+    robot: Robot | None = None
+    table: XYTable | None = None
+    owned: list[Any] = field(default_factory=list)
+    truth: Any = None
+
+    @property
+    def reference_joints_deg(self) -> tuple[float, ...] | None:
+        return None if self.config.robot is None else tuple(self.config.robot.reference_joints_deg)
+
+    def identities(self) -> dict[str, dict[str, str | None]]:
+        """Each device's identity, as recorded with a session."""
+        out: dict[str, dict[str, str | None]] = {"camera": asdict(self.camera.identity())}
+        if self.robot is not None:
+            out["robot"] = asdict(self.robot.identity())
+        if self.table is not None:
+            out["table"] = asdict(self.table.identity())
+        return out
+
+    def close_owned(self) -> None:
+        for thing in reversed(self.owned):
+            try:
+                thing.close()
+            except Exception:
+                log.exception("closing %r failed", thing)
+
+
+def open_station(config: StationConfig, *, broker: PromptBroker | None = None) -> StationDevices:
+    """Build (not connect) the devices a configuration names."""
+    broker = broker or PromptBroker()
+    camera: Camera = build("camera", config.camera.driver, **config.camera.options)
+    robot: Robot | None = None
+    if config.robot is not None:
+        options = dict(config.robot.options)
+        if config.robot.safety:
+            options["safety"] = dict(config.robot.safety)
+        robot = build("robot", config.robot.driver, **options)
+    table: XYTable | None = None
+    if config.table is not None:
+        table = build("table", config.table.driver, broker=broker, **config.table.options)
+    return StationDevices(config=config, camera=camera, broker=broker, robot=robot, table=table)
+
+
+def open_sim_station(**options: Any) -> StationDevices:
+    """The whole simulated station (controller twin on its pty with the real driver, sim camera, manual
+    table answered by the simulated operator), built by the ``station.sim`` entry point of ``sim``."""
+    devices: StationDevices = build("station", "sim", **options)
+    return devices

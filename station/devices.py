@@ -56,7 +56,43 @@ class ControllerError(DeviceError):
 
 
 class MotionStoppedError(DeviceError):
-    """A motion was stopped (``stop()``) before reaching its target; re-read the position before going on."""
+    """A motion was stopped (``stop()``, or a halt at the controller) before reaching its target.
+
+    ``stop()`` latches: every motion raises this until ``clear_stop()``. Re-read the position before
+    going on.
+    """
+
+
+# --------------------------------------------------------------------------- lifecycle and identity
+
+
+@runtime_checkable
+class Connectable(Protocol):
+    """Every device's lifecycle: a factory builds it unconnected; ``connect`` opens it, ``close`` releases it.
+
+    ``connect`` on a connected device does nothing; ``close`` is safe to call twice. The session runner
+    connects all devices and closes them in reverse order in one place.
+    """
+
+    def connect(self) -> None:
+        """Open the link (port, stream, prompt channel) and read the device's state."""
+
+    def close(self) -> None:
+        """Release the device; safe to call twice."""
+
+
+@dataclass(frozen=True)
+class DeviceIdentity:
+    """Who a device is, recorded with every session: each field ``None`` where the device cannot say.
+
+    ``model`` (e.g. the arm type from armstat, the camera's model name), ``serial`` (serial number or
+    device id), ``port`` (serial port, video node, camera address), ``firmware`` (version text).
+    """
+
+    model: str | None = None
+    serial: str | None = None
+    port: str | None = None
+    firmware: str | None = None
 
 
 # --------------------------------------------------------------------------- robot
@@ -77,6 +113,8 @@ class RobotStatus:
     moving: bool | None
     speed_pct: float | None
     last_error: str | None = None
+    calibrated: bool | None = None
+    arm_type: str | None = None
 
 
 @dataclass(frozen=True)
@@ -98,10 +136,11 @@ class Robot(Protocol):
     """A six-joint arm moved in joint space (degrees).
 
     Every motion is checked on the host (joint limits, maximum step, keep-out) before anything is
-    sent: a rejected motion raises ``MotionRejectedError`` and leaves the arm untouched. Motions
-    return when the controller has accepted them; ``wait_settled`` blocks until the arm is still.
-    Controller refusals raise ``ControllerError`` subclasses; a lost link ``DeviceConnectionError``
-    (``connect()`` again re-reads the arm state).
+    sent: a rejected motion raises ``MotionRejectedError`` and leaves the arm untouched; ``check_move``
+    runs the same checks without any I/O. Motions return when the arm has arrived; ``wait_settled``
+    blocks until an arm moved by someone else is still. Controller refusals raise ``ControllerError``
+    subclasses; a lost link ``DeviceConnectionError`` (``connect()`` again re-reads the arm state).
+    ``stop()`` latches: until ``clear_stop()``, every motion raises ``MotionStoppedError``.
     """
 
     def connect(self) -> None:
@@ -131,8 +170,21 @@ class Robot(Protocol):
     def set_speed(self, percent: float) -> None:
         """Set the speed override, in percent of maximum."""
 
+    def check_move(self, target_deg: Sequence[float], *, start_deg: Sequence[float] | None = None) -> None:
+        """Raise what ``move_joints(target_deg)`` from ``start_deg`` would raise on the host, with no I/O.
+
+        ``start_deg`` ``None``: the last commanded position. Limits, step and keep-out only: a chain of
+        moves can be checked before the first is sent.
+        """
+
     def stop(self) -> None:
-        """Stop any motion now (callable from another thread while a motion is in progress)."""
+        """Stop any motion now, best effort (callable from another thread); latches until ``clear_stop``."""
+
+    def clear_stop(self) -> None:
+        """Release the latch set by ``stop()``: motions are accepted again."""
+
+    def identity(self) -> DeviceIdentity:
+        """Model, serial, port and firmware as far as the device reports them."""
 
     def wait_settled(self, timeout_s: float | None = None) -> None:
         """Block until the arm has stopped moving (raise DeviceTimeoutError after ``timeout_s``)."""
@@ -220,7 +272,7 @@ class Camera(Protocol):
     small protocols below (``ExposureAdjustable`` ...); check with ``isinstance``.
     """
 
-    def open(self) -> None:
+    def connect(self) -> None:
         """Open the device and start streaming; a second call does nothing."""
 
     def close(self) -> None:
@@ -234,6 +286,9 @@ class Camera(Protocol):
 
     def status(self) -> CameraStatus:
         """Size, format and settings as the device reports them."""
+
+    def identity(self) -> DeviceIdentity:
+        """Model, serial or device id, address, firmware where the device reports them."""
 
 
 @runtime_checkable
@@ -347,6 +402,21 @@ class XYTable(Protocol):
     answer within ``timeout_s`` ``DeviceTimeoutError``.
     """
 
+    def connect(self) -> None:
+        """Make the table ready (for the manual table: nothing to open; it checks its prompt channel)."""
+
+    def close(self) -> None:
+        """Release the table (withdraw any open prompt of its own); safe to call twice."""
+
+    def identity(self) -> DeviceIdentity:
+        """What the table is (model, travel), as configured."""
+
+    def check_target(self, x_mm: float, y_mm: float) -> None:
+        """Raise what ``move_to(x_mm, y_mm)`` would raise before acting (travel, non-finite values).
+
+        No side effects: nothing is asked, nothing moves. Pre-flight checks a whole pattern with it.
+        """
+
     def position(self) -> TablePosition:
         """The last confirmed position (DeviceError if none was confirmed yet)."""
 
@@ -359,10 +429,12 @@ __all__ = [
     "PIXEL_FORMATS",
     "Camera",
     "CameraStatus",
+    "Connectable",
     "ControllerError",
     "DeviceBusyError",
     "DeviceConnectionError",
     "DeviceError",
+    "DeviceIdentity",
     "DeviceProtocolError",
     "DeviceTimeoutError",
     "ExposureAdjustable",

@@ -52,6 +52,10 @@ class TransformFit:
     def rms(self) -> float:
         return float(np.sqrt(np.mean(self.errors**2)))
 
+    def summary_um(self) -> dict[str, float]:
+        """``{"mean_um", "max_um", "rms_um", "scale"}``: the fit as ``station validate --json`` prints it."""
+        return {"mean_um": self.mean, "max_um": self.max, "rms_um": self.rms, "scale": self.scale}
+
 
 def _check_pairs(src: FloatArray, dst: FloatArray, minimum: int) -> None:
     if src.shape != dst.shape or src.ndim != 2 or src.shape[1] != 2:
@@ -125,24 +129,66 @@ def compare_displacements(commanded_um: FloatArray, measured_um: FloatArray) -> 
 class Repeatability:
     """ISO 9283 pose repeatability of attained positions (seed eqs. 13-18), units of the input.
 
-    ``barycentre``: (X_bar, Y_bar); ``distances``: l_i; ``l_bar``: mean l_i; ``s_l``: sample standard
-    deviation of l_i (N - 1); ``rp``: l_bar + 3 s_l.
+    ``barycentre``: (X_bar, Y_bar) or (X_bar, Y_bar, Z_bar); ``distances``: l_i; ``l_bar``: mean l_i;
+    ``s_l``: sample standard deviation of l_i (N - 1); ``rp``: l_bar + 3 s_l.
     """
 
-    barycentre: tuple[float, float]
+    barycentre: tuple[float, ...]
     distances: FloatArray
     l_bar: float
     s_l: float
     rp: float
 
 
-def repeatability(points: FloatArray) -> Repeatability:
-    """RP = l_bar + 3 S_l of attained positions ``points`` (N, 2), N >= 2."""
-    p = np.asarray(points, dtype=np.float64)
-    if p.ndim != 2 or p.shape[1] != 2 or len(p) < 2:
-        raise ValueError(f"expected (N, 2) attained positions with N >= 2, got shape {p.shape}")
+def _rp_of(p: FloatArray) -> tuple[FloatArray, FloatArray, float, float]:
     bary = p.mean(axis=0)
     dist = np.linalg.norm(p - bary, axis=1)
     l_bar = float(dist.mean())
     s_l = float(np.sqrt(((dist - l_bar) ** 2).sum() / (len(p) - 1)))
-    return Repeatability((float(bary[0]), float(bary[1])), dist, l_bar, s_l, l_bar + 3.0 * s_l)
+    return bary, dist, l_bar, s_l
+
+
+def repeatability(points: FloatArray) -> Repeatability:
+    """RP = l_bar + 3 S_l of attained positions ``points``: (N, 2) from images, (N, 3) with a Z sensor;
+    N >= 2."""
+    p = np.asarray(points, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] not in (2, 3) or len(p) < 2:
+        raise ValueError(f"expected (N, 2) or (N, 3) attained positions with N >= 2, got shape {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise ValueError("attained positions must be finite numbers")
+    bary, dist, l_bar, s_l = _rp_of(p)
+    return Repeatability(tuple(float(v) for v in bary), dist, l_bar, s_l, l_bar + 3.0 * s_l)
+
+
+def rp_interval(
+    points: FloatArray, *, level: float = 0.95, resamples: int = 2000, seed: int = 0
+) -> tuple[float, float]:
+    """A ``level`` interval of RP for this many cycles: percentile bootstrap over cycles (resampled with
+    replacement, barycentre recomputed each time). Seeded, so the same points give the same interval."""
+    p = np.asarray(points, dtype=np.float64)
+    if len(p) < 3:
+        raise ValueError(f"a bootstrap interval needs at least 3 cycles, got {len(p)}")
+    if not 0 < level < 1:
+        raise ValueError(f"level must be between 0 and 1, got {level}")
+    rng = np.random.default_rng(seed)
+    idx = rng.integers(0, len(p), size=(resamples, len(p)))
+    samples = p[idx]  # (R, N, D)
+    bary = samples.mean(axis=1, keepdims=True)
+    dist = np.linalg.norm(samples - bary, axis=2)
+    l_bar = dist.mean(axis=1)
+    s_l = dist.std(axis=1, ddof=1)
+    rp = l_bar + 3.0 * s_l
+    lo, hi = np.quantile(rp, [(1 - level) / 2, 1 - (1 - level) / 2])
+    return float(lo), float(hi)
+
+
+def scale_uncertainty(commanded: FloatArray, fit: TransformFit) -> float:
+    """Standard uncertainty of a similarity fit's scale, from its residuals: sigma / sqrt(sum |c - c_bar|^2)
+    with sigma^2 the per-coordinate residual variance (2N - 4 degrees of freedom)."""
+    c = np.asarray(commanded, dtype=np.float64)
+    n = len(c)
+    if n < 3:
+        raise ValueError("a scale uncertainty needs at least 3 points")
+    spread = float(((c - c.mean(axis=0)) ** 2).sum())
+    sigma2 = float((fit.errors**2).sum()) / (2 * n - 4)
+    return math.sqrt(sigma2 / spread)

@@ -29,6 +29,7 @@ from station.devices import (
     DeviceBusyError,
     DeviceConnectionError,
     DeviceError,
+    DeviceIdentity,
     DeviceTimeoutError,
     Frame,
     FrameError,
@@ -209,12 +210,13 @@ class AravisCamera:
         self._aravis: ModuleType | None = None
         self._layout = Layout(0, 0, pixel_format)
         self._model = ""
+        self._identity = DeviceIdentity(model=None, serial=None, port=camera_id, firmware=None)
         self._next_id = 1
         self._last: tuple[int, int] | None = None
 
     # ------------------------------------------------------------------ lifecycle
 
-    def open(self) -> None:
+    def connect(self) -> None:
         """Connect, take control, apply the settings and start free-running acquisition."""
         with self._lock:
             if self._handles is not None:
@@ -233,6 +235,7 @@ class AravisCamera:
             try:
                 self._check_control(camera)
                 self._model = f"{camera.get_vendor_name()} {camera.get_model_name()}".strip()
+                self._identity = self._read_identity(camera)
                 self._configure(camera)
                 self._start(handles)
             except glib_error as exc:
@@ -255,8 +258,28 @@ class AravisCamera:
                 self._finalizer = None
             log.info("closed Aravis %s", self._name)
 
+    def identity(self) -> DeviceIdentity:
+        """Vendor and model, serial number, device id and firmware version (read at connect)."""
+        return self._identity
+
+    def _read_identity(self, camera: Any) -> DeviceIdentity:
+        firmware: str | None = None
+        for feature in ("DeviceFirmwareVersion", "DeviceVersion"):
+            try:
+                firmware = str(camera.get_string(feature)) or None
+            except self._glib_error:
+                continue
+            if firmware:
+                break
+        return DeviceIdentity(
+            model=self._model or None,
+            serial=str(camera.get_device_serial_number() or "") or None,
+            port=str(camera.get_device_id() or "") or self._camera_id,
+            firmware=firmware,
+        )
+
     def __enter__(self) -> AravisCamera:
-        self.open()
+        self.connect()
         return self
 
     def __exit__(self, *exc: type[BaseException] | BaseException | TracebackType | None) -> None:
@@ -398,7 +421,7 @@ class AravisCamera:
 
     def _require_open(self) -> _Handles:
         if self._handles is None:
-            raise DeviceConnectionError(f"Aravis camera {self._name} is not open: call open() first")
+            raise DeviceConnectionError(f"Aravis camera {self._name} is not open: call connect() first")
         return self._handles
 
     def _camera_with(self, what: str, probe: str) -> Any:

@@ -20,6 +20,7 @@ import stat
 import threading
 import time
 from collections.abc import Callable
+from pathlib import Path
 from types import TracebackType
 from typing import Any, Protocol
 
@@ -31,6 +32,7 @@ from station.devices import (
     DeviceBusyError,
     DeviceConnectionError,
     DeviceError,
+    DeviceIdentity,
     DeviceTimeoutError,
     Frame,
     FrameError,
@@ -154,7 +156,7 @@ class V4L2Camera:
 
     # ------------------------------------------------------------------ lifecycle
 
-    def open(self) -> None:
+    def connect(self) -> None:
         """Open the device and set format, size, frame rate and buffers; errors say what to check."""
         with self._lock:
             if self._cap is not None:
@@ -182,8 +184,17 @@ class V4L2Camera:
                 cap.release()
                 log.info("closed V4L2 %s", self._path)
 
+    def identity(self) -> DeviceIdentity:
+        """The device node, and the card name the kernel gives it (sysfs) where there is one."""
+        node = os.path.basename(os.path.realpath(self._path))
+        try:
+            name = Path(f"/sys/class/video4linux/{node}/name").read_text(encoding="utf-8").strip() or None
+        except OSError:
+            name = None
+        return DeviceIdentity(model=name, serial=None, port=self._path, firmware=None)
+
     def __enter__(self) -> V4L2Camera:
-        self.open()
+        self.connect()
         return self
 
     def __exit__(self, *exc: type[BaseException] | BaseException | TracebackType | None) -> None:
@@ -294,7 +305,7 @@ class V4L2Camera:
 
     def _require_open(self) -> VideoCaptureLike:
         if self._cap is None:
-            raise DeviceConnectionError(f"V4L2 camera {self._path} is not open: call open() first")
+            raise DeviceConnectionError(f"V4L2 camera {self._path} is not open: call connect() first")
         return self._cap
 
     def _configure(self, cap: VideoCaptureLike) -> None:

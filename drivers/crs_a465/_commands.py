@@ -1,10 +1,10 @@
 """The dialect: the two C500C shells, and each command the driver sends, defined once with its validator.
 
 Command names and their meaning (``joint`` relative, ``w0`` commanded, ``w2`` actual, ``speed``,
-``home``, ``ready``; ``armstat`` in the application shell only) are seen in the firmware's help files
-[C]. Argument formats (three decimals; space- or comma-separated), that a motion command's prompt
-returns when the motion has ended, and how to stop a motion (Ctrl-C) are assumptions [A], each a
-setting of :class:`ShellProfile`.
+``home``, ``ready``, ``armstat`` on both shells) are read from the firmware [F]; so is that ``joint``
+and ``ready`` give the prompt back while the arm still moves (the driver waits for arrival itself).
+The argument format of the application shell (comma-separated) and how to stop a motion (Ctrl-Z, which
+the robot server's halt message names) are assumptions [A], each a setting of :class:`ShellProfile`.
 """
 
 from __future__ import annotations
@@ -30,12 +30,14 @@ class ShellProfile(BaseModel):
     prompt: str = Field("$ ", min_length=1, description="what the controller prints when it is ready [C]")
     separator: str = Field(" ", min_length=1, description="between a command's arguments [C]")
     has_armstat: bool = Field(
-        False, description="power and homing reports via armstat [C: application shell]"
+        True, description="power, homing and per-axis state via armstat [F: both shells]"
     )
-    motion_blocks: bool = Field(True, description="[A] the prompt returns only when a motion has ended")
-    stop_sequence: str = Field("\x03", min_length=1, description="[A] what stops a running motion (Ctrl-C)")
-    interrupted_marker: str = Field("^C", description="[A] what the controller prints when interrupted")
-    joint_decimals: int = Field(3, ge=0, le=6, description="[A] decimals sent in joint moves")
+    stop_sequence: str = Field(
+        "\x1a",
+        min_length=1,
+        description="[A] what halts a running motion: Ctrl-Z (the robot server's halt message names ^Z)",
+    )
+    joint_decimals: int = Field(3, ge=0, le=6, description="[F: w0 prints 3] decimals sent in joint moves")
 
     @classmethod
     def system(cls, **overrides: object) -> ShellProfile:
@@ -51,7 +53,6 @@ class ShellProfile(BaseModel):
             "kind": "application",
             "prompt": f"{name}> ",
             "separator": ",",
-            "has_armstat": True,
         }
         return cls.model_validate({**values, **overrides})
 
@@ -80,7 +81,7 @@ W2 = Request("w2")
 SPEED_QUERY = Request("speed")
 """``Current Speed: 50% of max.`` [C]."""
 ARMSTAT = Request("armstat")
-"""Power and homing report, application shell [C]."""
+"""Arm type, power, homing and the per-axis locked/done/limped/homed table, both shells [F]."""
 
 # ------------------------------------------------------------------ actions and motions
 
@@ -96,7 +97,7 @@ def set_speed(percent: float) -> Request:
         raise InvalidArgumentError(f"speed must be a number of percent, got {percent!r}")
     if percent != int(percent) or not 1 <= percent <= 100:
         raise InvalidArgumentError(f"speed must be a whole percent from 1 to 100, got {percent!r}")
-    return Request("speed", (str(int(percent)),), kind="action")
+    return Request("speed", (str(int(percent)),), kind="action")  # [F] whole numbers 1-100
 
 
 def check_axis(axis: int) -> int:

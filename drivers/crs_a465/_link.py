@@ -16,7 +16,7 @@ from typing import Literal
 import serial
 from pydantic import BaseModel, ConfigDict, Field
 
-from station.devices import DeviceConnectionError, DeviceTimeoutError
+from station.devices import DeviceBusyError, DeviceConnectionError, DeviceTimeoutError
 
 log = logging.getLogger(__name__)
 
@@ -48,8 +48,7 @@ class LinkSettings(BaseModel):
     echo: bool = Field(True, description="the controller echoes what is typed")
     encoding: str = "ascii"
     reply_timeout_s: float = Field(3.0, gt=0, description="wait for the prompt after a query")
-    motion_timeout_s: float = Field(120.0, gt=0, description="wait for the prompt after a motion command")
-    home_timeout_s: float = Field(300.0, gt=0, description="wait for the prompt after home")
+    home_timeout_s: float = Field(300.0, gt=0, description="wait for the prompt after home (home waits)")
     poll_s: float = Field(0.02, gt=0, description="read granularity; also the port's read timeout")
     resync_quiet_s: float = Field(0.05, ge=0, description="silence that ends a drain of stale input")
 
@@ -79,7 +78,10 @@ class SerialTransport:
         return self._serial is not None and bool(self._serial.is_open)
 
     def open(self) -> None:
-        """Open the port (a name or URL is opened with ``serial_for_url``)."""
+        """Open the port exclusively (a name or URL is opened with ``serial_for_url``).
+
+        A second opener gets :class:`~station.devices.DeviceBusyError` ("in use").
+        """
         if self.is_open:
             return
         s = self.settings
@@ -103,10 +105,21 @@ class SerialTransport:
                     rtscts=s.rtscts,
                     timeout=s.poll_s,
                     write_timeout=s.reply_timeout_s,
+                    exclusive=True,
                 )
                 port.open()
                 self._serial = port
-        except (serial.SerialException, OSError, _TermiosError, ValueError) as exc:
+        except serial.SerialException as exc:
+            self._serial = None if not self._injected else self._serial
+            if "exclusively lock" in str(exc):
+                raise DeviceBusyError(
+                    f"{self.name!r} is in use by another program (it holds the port's exclusive lock):"
+                    " close that program, then connect again"
+                ) from exc
+            raise DeviceConnectionError(
+                f"cannot open {self.name!r}: {exc}; check the port name and that no other program holds it"
+            ) from exc
+        except (OSError, _TermiosError, ValueError) as exc:
             self._serial = None if not self._injected else self._serial
             raise DeviceConnectionError(
                 f"cannot open {self.name!r}: {exc}; check the port name and that no other program holds it"
@@ -170,17 +183,41 @@ class SerialTransport:
             raise self._lost(exc) from exc
         return data
 
-    def read_until_prompt(self, prompt: str, timeout_s: float, *, what: str = "") -> list[str]:
+    def read_until_prompt(
+        self,
+        prompt: str,
+        timeout_s: float,
+        *,
+        what: str = "",
+        on_line: Callable[[str], float] | None = None,
+        interrupted: Callable[[], bool] | None = None,
+    ) -> list[str]:
         """Read up to the first ``prompt`` at the start of a line; return the lines before it.
 
         Lines are split on CR LF (a bare CR or LF is accepted too) and logged one by one. Bytes read
         past the prompt are kept for the next call. Raises DeviceTimeoutError when no prompt has come
-        after ``timeout_s``.
+        after ``timeout_s``. ``on_line`` sees each complete line as it arrives and returns seconds to
+        add to the deadline (a wait the controller announced); once ``interrupted()`` is true the
+        deadline shrinks to ``reply_timeout_s`` from then.
         """
         deadline = self._clock() + timeout_s
         raw, self._pending = self._pending, bytearray()
         prompt_bytes = prompt.encode(self.settings.encoding)
+        seen_lines = 0
+        cut_short = False
         while True:
+            if on_line is not None:
+                complete = _split_lines(raw.decode(self.settings.encoding, errors="replace"))
+                if raw and raw[-1:] not in (b"\r", b"\n"):
+                    complete = complete[:-1]
+                for line in complete[seen_lines:]:
+                    extra = on_line(line)
+                    if extra > 0:
+                        deadline = max(deadline, self._clock() + extra)
+                seen_lines = max(seen_lines, len(complete))
+            if interrupted is not None and not cut_short and interrupted():
+                cut_short = True
+                deadline = min(deadline, self._clock() + self.settings.reply_timeout_s)
             end = _find_prompt(raw, prompt_bytes)
             if end is not None:
                 before = raw[: end - len(prompt_bytes)]
@@ -195,7 +232,7 @@ class SerialTransport:
                 for line in _split_lines(got):
                     log.debug("<- %r (before timeout)", line)
                 raise DeviceTimeoutError(
-                    f"no prompt {prompt!r} from {self.name!r} within {timeout_s:g} s"
+                    f"no prompt {prompt!r} from {self.name!r} within {timeout_s:.3g} s"
                     + (f" after {what!r}" if what else "")
                     + (f" (received {got[-120:]!r})" if got else " (received nothing)")
                     + f"; check the cable, {self.settings.baudrate} baud, and that the controller shows"

@@ -4,9 +4,11 @@
 
 COMMAND: ``status``, ``where``, ``home``, ``ready``, ``speed PERCENT``, ``joint AXIS DEGREES``
 (relative), ``move-joints D1 D2 D3 D4 D5 D6`` (absolute). ``--sim`` starts a fresh controller twin
-for this call (through the device registry: drivers never import ``sim``). Motion commands print the
-position afterwards. Exit 0 on success, 1 when the controller or the host's checks refuse (the
-message on stderr), 2 on a usage error.
+for this call (through the device registry: drivers never import ``sim``). Motion commands return once
+the arm has arrived, then print the position. Exit 0 on success, 1 when the controller or the host's
+checks refuse (the message on stderr), 2 on a usage error or a bad option value (one line, nothing
+opened). SIGINT and SIGTERM stop the arm (best effort: the E-stop is the stop), print where it is and
+exit 130 and 143.
 """
 
 from __future__ import annotations
@@ -14,12 +16,21 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import math
+import signal
 import sys
+import threading
 from collections.abc import Callable
+from types import FrameType
 from typing import Any, Protocol
 
-from drivers.crs_a465 import open_robot
+from pydantic import ValidationError
+
+from drivers.crs_a465 import build_robot
+from drivers.crs_a465._link import LinkSettings
+from drivers.crs_a465._motion import MotionSettings
 from drivers.crs_a465._robot import CrsA465
+from drivers.crs_a465._safety import SafetyLimits
 from station import config
 from station.devices import JOINT_COUNT, DeviceError, RobotPosition, RobotStatus
 
@@ -74,6 +85,8 @@ def _print_status(s: RobotStatus, as_json: bool) -> None:
         "moving": s.moving,
         "speed_pct": s.speed_pct,
         "last_error": s.last_error,
+        "calibrated": s.calibrated,
+        "arm_type": s.arm_type,
     }
     if as_json:
         _out(json.dumps(fields))
@@ -103,40 +116,140 @@ def _run_command(robot: CrsA465, args: argparse.Namespace) -> None:
         "joint": lambda: robot.move_joint(args.axis, args.degrees),
         "move-joints": lambda: robot.move_joints(args.degrees),
     }
-    actions[name]()
+    actions[name]()  # motions return once the arm has arrived
     if name == "speed":
         _print_status(robot.status(), args.json)
     else:
-        robot.wait_settled()
         _print_position(robot.where(), args.json)
 
 
+_OPTION_OF_FIELD = {
+    "baudrate": "--baud",
+    "reply_timeout_s": "--timeout",
+    "max_step_deg": "--max-step",
+    "stall_timeout_s": "--stall-timeout",
+}
+
+
+def _number(option: str, text: str | None, kind: type[float] | type[int]) -> float | int | None:
+    if text is None:
+        return None
+    try:
+        value = kind(text)
+    except ValueError:
+        raise _BadOptionError(f"{option}: expected a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise _BadOptionError(f"{option}: expected a finite number, got {text!r}")
+    return value
+
+
+class _BadOptionError(ValueError):
+    """An option value that failed validation: one line, exit 2, nothing opened."""
+
+
+def _one_line(exc: ValidationError) -> str:
+    first = exc.errors()[0]
+    field = str(first["loc"][-1]) if first["loc"] else "value"
+    option = _OPTION_OF_FIELD.get(field, field)
+    return f"{option}: {first['msg'].lower()} (got {first.get('input')!r})"
+
+
+def _settings(args: argparse.Namespace) -> dict[str, Any]:
+    """Every option value validated into the driver's settings before anything is opened."""
+    baud = _number("--baud", args.baud, int)
+    link: dict[str, Any] = {}
+    if baud is not None and not args.sim:
+        link["baudrate"] = baud
+    timeout = _number("--timeout", args.timeout, float)
+    if timeout is not None:
+        link["reply_timeout_s"] = timeout
+    safety: dict[str, Any] = {}
+    max_step = _number("--max-step", args.max_step, float)
+    if max_step is not None:
+        safety["max_step_deg"] = max_step
+    motion: dict[str, Any] = {}
+    stall = _number("--stall-timeout", args.stall_timeout, float)
+    if stall is not None:
+        motion["stall_timeout_s"] = stall
+    try:
+        return {
+            "link": LinkSettings.model_validate(link),
+            "safety": SafetyLimits.model_validate(safety),
+            "motion": MotionSettings.model_validate(motion),
+        }
+    except ValidationError as exc:
+        raise _BadOptionError(_one_line(exc)) from None
+
+
+_EXIT_OF_SIGNAL = {signal.SIGINT: 130, signal.SIGTERM: 143}
+
+
+def _supervise(robot: CrsA465, args: argparse.Namespace) -> int:
+    """Run the command in a worker thread; on SIGINT/SIGTERM stop the arm, say where it is, exit 130/143."""
+    failure: list[BaseException] = []
+
+    def work() -> None:
+        try:
+            robot.connect()
+            _run_command(robot, args)
+        except BaseException as exc:  # noqa: BLE001 - handed to the main thread
+            failure.append(exc)
+
+    received: list[int] = []
+
+    def on_signal(signum: int, frame: FrameType | None) -> None:
+        received.append(signum)
+
+    previous: dict[signal.Signals, Any] = {}
+    if threading.current_thread() is threading.main_thread():
+        for signum in _EXIT_OF_SIGNAL:
+            previous[signum] = signal.signal(signum, on_signal)
+    try:
+        worker = threading.Thread(target=work, name="station robot", daemon=True)
+        worker.start()
+        stopped = False
+        while worker.is_alive():
+            worker.join(0.05)
+            if received and not stopped:
+                stopped = True
+                robot.stop()
+        if received:
+            name = signal.Signals(received[0]).name
+            position = robot.last_position
+            if position is None:
+                _err(f"{name}: stop sent; the arm's position is unknown (the link was not up)")
+            else:
+                _err(
+                    f"{name}: stop sent; the arm is at joints {_fmt_row(position.joints_deg, 'deg')},"
+                    f" commanded {_fmt_row(position.commanded_joints_deg, 'deg')}"
+                )
+                _print_position(position, args.json)
+            return _EXIT_OF_SIGNAL[signal.Signals(received[0])]
+        if failure:
+            raise failure[0]
+        return 0
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
+
 def handle(args: argparse.Namespace) -> int:
-    """Run one ``station robot`` command; exit code 0 or 1."""
+    """Run one ``station robot`` command; exit code 0, 1 (refused or failed), 2 (bad option value)."""
+    try:
+        settings = _settings(args)
+    except _BadOptionError as exc:
+        _err(str(exc))
+        return 2
     twin: _Twin | None = None
+    robot: CrsA465 | None = None
     try:
         if args.sim:
             twin = config.build("controller", "sim", shell=args.shell, app_name=args.app_name)
             port = twin.port
         else:
             port = args.port
-        safety: dict[str, Any] = {}
-        if args.max_step is not None:
-            safety["max_step_deg"] = args.max_step
-        link: dict[str, Any] = {}
-        if args.timeout is not None:
-            link["reply_timeout_s"] = args.timeout
-        robot = open_robot(
-            port,
-            shell=args.shell,
-            app_name=args.app_name,
-            baudrate=None if args.sim else args.baud,
-            link=link,
-            safety=safety,
-        )
-        with robot:
-            _run_command(robot, args)
-        return 0
+        robot = build_robot(port, shell=args.shell, app_name=args.app_name, **settings)
+        return _supervise(robot, args)
     except DeviceError as exc:
         _err(str(exc))
         return 1
@@ -144,6 +257,8 @@ def handle(args: argparse.Namespace) -> int:
         _err(str(exc))
         return 1
     finally:
+        if robot is not None:
+            robot.close()
         if twin is not None:
             twin.close()
 
@@ -175,7 +290,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg,
     target = parser.add_mutually_exclusive_group(required=True)
     target.add_argument("--sim", action="store_true", help="start a fresh controller twin for this call")
     target.add_argument("--port", help="serial port or pyserial URL of the controller (e.g. /dev/ttyS0)")
-    parser.add_argument("--baud", type=int, default=57600, help="baud rate (default 57600)")
+    parser.add_argument("--baud", default=None, metavar="N", help="baud rate (default 57600)")
     parser.add_argument("--json", action="store_true", help="print JSON")
     parser.add_argument(
         "--shell",
@@ -184,14 +299,18 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg,
         help="controller shell (default system)",
     )
     parser.add_argument("--app-name", default="ash", help="application shell name: its prompt is 'NAME> '")
+    parser.add_argument("--max-step", default=None, metavar="DEG", help="largest joint change per call")
+    parser.add_argument("--timeout", default=None, metavar="S", help="reply timeout (default 3 s)")
     parser.add_argument(
-        "--max-step", type=float, default=None, metavar="DEG", help="largest joint change per call"
-    )
-    parser.add_argument(
-        "--timeout", type=float, default=None, metavar="S", help="reply timeout (default 3 s)"
+        "--stall-timeout",
+        default=None,
+        metavar="S",
+        help="fail a motion when nothing has moved this long short of the target (default 3 s)",
     )
     commands = parser.add_subparsers(dest="robot_command", required=True, metavar="COMMAND")
-    commands.add_parser("status", help="power, homing, speed (unknown where the controller cannot tell)")
+    commands.add_parser(
+        "status", help="power, calibration, homing, motion, speed, arm type (armstat and speed)"
+    )
     commands.add_parser("where", help="attained and commanded joints, and the WORLD row")
     commands.add_parser("home", help="home the arm")
     commands.add_parser("ready", help="go to the ready pose")

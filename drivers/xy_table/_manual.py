@@ -9,12 +9,13 @@ from collections.abc import Mapping
 
 from station.devices import (
     DeviceError,
+    DeviceIdentity,
     DeviceTimeoutError,
     MotionRejectedError,
     OperatorCancelledError,
     TablePosition,
 )
-from station.prompts import Outcome, PromptBroker, PromptBusyError, PromptField
+from station.prompts import Outcome, PromptBroker, PromptBusyError, PromptField, PromptHandle
 
 from ._vernier import DIVISION_IN, format_in, in_to_mm, is_on_grid, mm_to_in, snap_in
 
@@ -68,6 +69,49 @@ class ManualXYTable:
         self._origin_in = origin_in
         self._position = initial
         self._lock = threading.Lock()
+        self._connected = False
+        self._pending: PromptHandle | None = None
+
+    # ------------------------------------------------------------------ lifecycle
+
+    def connect(self) -> None:
+        """Nothing to open: the table is a person with two micrometers; marks the table in use."""
+        self._connected = True
+
+    def close(self) -> None:
+        """Withdraw this table's open prompt, if any (the operator is told); safe to call twice."""
+        self._connected = False
+        pending = self._pending
+        if pending is not None:
+            pending.withdraw(reason=f"{self._name} was closed")
+
+    def identity(self) -> DeviceIdentity:
+        """The manual table as configured: its travel in inches and its micrometers' division."""
+        (x0, x1), (y0, y1) = self._travel[X_FIELD], self._travel[Y_FIELD]
+        return DeviceIdentity(
+            model=(
+                f"manual Vernier X-Y table, {DIVISION_IN} in divisions, "
+                f"X {x0:g}-{x1:g} in, Y {y0:g}-{y1:g} in"
+            ),
+            serial=self._name,
+            port="operator prompts",
+            firmware=None,
+        )
+
+    def check_target(self, x_mm: float, y_mm: float) -> None:
+        """Raise what ``move_to`` would before asking anything: non-finite values, travel. No side effects."""
+        for axis, value in (("x_mm", x_mm), ("y_mm", y_mm)):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise MotionRejectedError(
+                    f"{self._name}: target {axis} = {value!r} is not a finite number of millimetres"
+                )
+        if max(abs(x_mm), abs(y_mm)) > _FAR_MM:  # no micrometer reading exists: no rounding either
+            raise MotionRejectedError(
+                f"{self._name}: target ({x_mm:g}, {y_mm:g}) mm is outside its travel "
+                f"{format_in(self._travel[X_FIELD][0])} to {format_in(self._travel[X_FIELD][1])}"
+            )
+        x_in, y_in = self.readings_for(x_mm, y_mm)
+        self._check_travel({X_FIELD: x_in, Y_FIELD: y_in}, what=f"target ({x_mm:g}, {y_mm:g}) mm")
 
     # ------------------------------------------------------------------ conversions
 
@@ -100,18 +144,12 @@ class ManualXYTable:
         the operator cancels, DeviceTimeoutError if nobody answers within ``timeout_s`` (the prompt is
         then withdrawn), DeviceError if another prompt is open.
         """
-        for label, value in (("x_mm", x_mm), ("y_mm", y_mm), ("timeout_s", timeout_s)):
-            if value is not None and not math.isfinite(value):
-                raise MotionRejectedError(f"{self._name}: {label} must be a finite number, got {value!r}")
+        if timeout_s is not None and not math.isfinite(timeout_s):
+            raise MotionRejectedError(f"{self._name}: timeout_s must be a finite number, got {timeout_s!r}")
         if timeout_s is not None and timeout_s <= 0:
             raise MotionRejectedError(f"{self._name}: timeout_s must be above 0 s, got {timeout_s!r}")
-        if max(abs(x_mm), abs(y_mm)) > _FAR_MM:  # no micrometer reading exists: no rounding either
-            raise MotionRejectedError(
-                f"{self._name}: target ({x_mm:g}, {y_mm:g}) mm is outside its travel "
-                f"{format_in(self._travel[X_FIELD][0])} to {format_in(self._travel[X_FIELD][1])}"
-            )
+        self.check_target(x_mm, y_mm)
         x_in, y_in = self.readings_for(x_mm, y_mm)
-        self._check_travel({X_FIELD: x_in, Y_FIELD: y_in}, what=f"target ({x_mm:g}, {y_mm:g}) mm")
         with self._lock:
             target = self.position_for(x_in, y_in)
             current = self._position
@@ -137,10 +175,13 @@ class ManualXYTable:
                 )
             except PromptBusyError as exc:
                 raise DeviceError(f"{self._name}: cannot ask for the move: {exc}") from exc
+            self._pending = handle
             try:
                 answer = handle.wait(timeout_s)
             except TimeoutError:
                 answer = handle.withdraw(reason=f"no answer within {timeout_s} s")
+            finally:
+                self._pending = None
             if answer.outcome is Outcome.WITHDRAWN:
                 raise DeviceTimeoutError(
                     f"{self._name}: nobody confirmed the move to X {format_in(x_in)}, Y {format_in(y_in)} "

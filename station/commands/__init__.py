@@ -14,9 +14,17 @@ Register = Callable[[SubParsers], None]
 
 
 def _core() -> list[Register]:
-    from station.commands import camera, measure, sweep, table, validate
+    from station.commands import camera, measure, run, sessions, sweep, table, validate
 
-    return [measure.register, validate.register, sweep.register, camera.register, table.register]
+    return [
+        measure.register,
+        validate.register,
+        sweep.register,
+        camera.register,
+        table.register,
+        run.register,
+        sessions.register,
+    ]
 
 
 CORE_COMMANDS: list[Register] = _core()

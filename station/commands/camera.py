@@ -89,7 +89,7 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     camera: Camera | None = None
     try:
         camera = _build(args)
-        camera.open()
+        camera.connect()
         if args.exposure_us is not None:
             if not isinstance(camera, ExposureAdjustable):
                 raise DeviceError("this camera has no exposure setting")

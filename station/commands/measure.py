@@ -8,6 +8,7 @@ import sys
 
 from tqdm import tqdm
 
+from station import scale_calibration
 from station.batch import FileResult, default_jobs, measure_files
 from station.commands import SubParsers
 from station.commands._common import add_measure_options, finite_float, params_from_args
@@ -32,6 +33,13 @@ def register(sub: SubParsers) -> None:
         "(JSON, or the YAML/XML cv2.FileStorage writes)",
     )
     p.add_argument(
+        "--scale-calibration",
+        metavar="FILE",
+        default=None,
+        help="measure with the groove width a validation session estimated (JSON {groove_width_mm, u_mm, "
+        "session_id}, as in DATA/scale-calibration.json); recorded as diagnostics.scale_calibration",
+    )
+    p.add_argument(
         "--max-file-mb",
         type=finite_float("--max-file-mb", positive=True),
         default=DEFAULT_MAX_BYTES / 2**20,
@@ -51,6 +59,15 @@ def register(sub: SubParsers) -> None:
 
 def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     params = params_from_args(parser, args)
+    calibration: dict[str, object] | None = None
+    if args.scale_calibration is not None:
+        try:
+            cal = scale_calibration.load(args.scale_calibration)
+        except scale_calibration.ScaleCalibrationError as exc:
+            parser.error(str(exc))
+        if not any(a.split("=", 1)[0].strip().lower() == "groove_width_mm" for a in args.assignments):
+            params = params.with_values(groove_width_mm=cal.groove_width_mm)
+        calibration = cal.record(args.scale_calibration)
     limits = ImageLimits(
         max_bytes=max(1, int(args.max_file_mb * 2**20)), max_pixels=max(1, int(args.max_megapixels * 1e6))
     )
@@ -64,7 +81,10 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         if not result.ok:
             print(f"station measure: {result.file}: {result.error}", file=sys.stderr)
         if args.json:
-            print(json.dumps(result.to_json()), flush=True)
+            doc = result.to_json()
+            if calibration is not None and doc.get("ok"):
+                doc["diagnostics"]["scale_calibration"] = calibration
+            print(json.dumps(doc), flush=True)
     bar.close()
     if not args.json:
         print(measurement_rows(results))

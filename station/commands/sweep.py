@@ -12,8 +12,8 @@ from station.batch import default_jobs
 from station.commands import SubParsers
 from station.commands._common import add_measure_options, params_from_args
 from station.imagesets import ImageSetError, load_set
-from station.report import table
-from station.sweep import PRECISE_GRID, SEED_TABLE_1, Trial, best, grid, parse_grid, run_sweep, seed_trials
+from station.report import SweepRow, sweep_report
+from station.sweep import PRECISE_GRID, Trial, best, grid, parse_grid, run_sweep, seed_trials
 from station.validation import CALIBRATIONS
 
 
@@ -103,30 +103,14 @@ def _as_json(trials: list[Trial], winner: Trial | None, mode: str) -> dict[str, 
 
 
 def _as_table(trials: list[Trial], winner: Trial | None, mode: str, *, seed_layout: bool) -> str:
-    rows = []
-    names = list(trials[0].overrides) if trials else []
-    for t in trials:
-        mark = "*" if winner is not None and t.number == winner.number else ""
-        maxe = f"{t.max_e_mm:.5f}" if t.result else "failed"
-        meane = f"{t.mean_e_mm:.5f}" if t.result else (t.error or "")
-        if seed_layout:
-            o = t.overrides
-            cells = [str(t.number), str(o["filter"]).capitalize(), str(o["skip"]), str(o["testwidth"])]
-            rows.append([*cells, str(o["testheight"]), maxe, meane, mark])
-        else:
-            rows.append([str(t.number), *(str(t.overrides[n]) for n in names), maxe, meane, mark])
-    headers = ["Trial", "Filter", "SK", "TW", "TH"] if seed_layout else ["Trial", *names]
-    text = table([*headers, "MaxE", "MeanE", "best"], rows)
-    note = f"{mode} mode; MaxE / MeanE in mm after the well-fit parallelogram; * = lowest MeanE, then MaxE"
-    if seed_layout:
-        seed = table(
-            ["Trial", "Filter", "SK", "TW", "TH", "MaxE", "MeanE"],
-            [
-                [str(n), f.capitalize(), str(sk), str(tw), str(th), f"{mx:.4f}", f"{mn:.4f}"]
-                for n, f, sk, tw, th, mx, mn in SEED_TABLE_1
-            ],
+    rows = [
+        SweepRow(
+            t.number,
+            t.overrides,
+            t.max_e_mm if t.result else None,
+            t.mean_e_mm if t.result else None,
+            t.error,
         )
-        note += (
-            "\nTW = TESTWIDTH, TH = TESTHEIGHT (the column headers' reading)\n\nthe seed's Table 1:\n" + seed
-        )
-    return f"{text}\n\n{note}"
+        for t in trials
+    ]
+    return sweep_report(rows, winner.number if winner else None, mode, seed_layout=seed_layout)

@@ -50,10 +50,7 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
             "calibration": result.calibration,
             "images": len(result.results),
             "measured": int(result.used.sum()),
-            **{
-                f.kind: {"mean_um": f.mean, "max_um": f.max, "rms_um": f.rms, "scale": f.scale}
-                for f in (c.rigid, c.similarity, c.affine)
-            },
+            **{f.kind: f.summary_um() for f in (c.rigid, c.similarity, c.affine)},
             "failures": [{"file": r.file, "error": r.error} for r in result.failures],
         }
         if result.center_error_px is not None and len(result.center_error_px):

@@ -22,14 +22,28 @@ PREWITT_DOWN: Final = np.array([[-1, -1, -1], [0, 0, 0], [1, 1, 1]], dtype=np.fl
 PREWITT_RIGHT: Final = np.ascontiguousarray(PREWITT_DOWN.T)
 
 
+def operator_responses(filtered: Float32Image | npt.NDArray[np.uint8]) -> tuple[Float32Image, Float32Image]:
+    """Eq. 4 and its transpose, both polarities: (gy, gx). ``bottom`` is max(gy, 0), ``top``
+    max(-gy, 0), ``right`` max(gx, 0), ``left`` max(-gx, 0). An 8-bit image gives the same values as
+    its float32 copy (sums of whole numbers are exact)."""
+    gy = cv2.filter2D(filtered, cv2.CV_32F, PREWITT_DOWN, borderType=cv2.BORDER_REPLICATE)
+    gx = cv2.filter2D(filtered, cv2.CV_32F, PREWITT_RIGHT, borderType=cv2.BORDER_REPLICATE)
+    return np.asarray(gy, np.float32), np.asarray(gx, np.float32)
+
+
+def threshold_level(peak: float, fraction: float) -> float:
+    """The value above which a response is kept (section 3.2.3): just below ``fraction * peak`` in
+    float32, so that a value equal to it is kept."""
+    return float(np.nextafter(np.float32(fraction * peak), np.float32(-np.inf)))
+
+
 def directional_responses(filtered: Float32Image) -> dict[Edge, Float32Image]:
     """The four operators' responses, each keeping only its own polarity (negative values -> 0).
 
     ``bottom`` is eq. 4 (dark above, bright below); ``top`` its negation; ``right`` is eq. 4
     transposed (dark left, bright right); ``left`` its negation. Shapes equal ``filtered``'s.
     """
-    gy = cv2.filter2D(filtered, cv2.CV_32F, PREWITT_DOWN, borderType=cv2.BORDER_REPLICATE)
-    gx = cv2.filter2D(filtered, cv2.CV_32F, PREWITT_RIGHT, borderType=cv2.BORDER_REPLICATE)
+    gy, gx = operator_responses(filtered)
     return {
         "top": np.maximum(-gy, 0.0),
         "bottom": np.maximum(gy, 0.0),
@@ -44,6 +58,6 @@ def apply_threshold(response: Float32Image, fraction: float) -> Float32Image:
     if peak <= 0.0:
         return np.zeros_like(response)
     # THRESH_TOZERO keeps values strictly above the threshold: step just below it to keep equality
-    level = float(np.nextafter(np.float32(fraction * peak), np.float32(-np.inf)))
+    level = threshold_level(peak, fraction)
     _, out = cv2.threshold(response, level, 0.0, cv2.THRESH_TOZERO)
     return np.asarray(out, np.float32)

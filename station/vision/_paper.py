@@ -8,9 +8,11 @@ eqs. 9-12) -> 9 centre relative to the image origin, mm (3.2.6).
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
+import numpy.typing as npt
 
-from station.vision._edges import EDGES, Edge, apply_threshold, directional_responses
+from station.vision._edges import Edge, operator_responses, threshold_level
 from station.vision._errors import EdgeNotFoundError, describe_missing
 from station.vision._filters import apply_filter
 from station.vision._geometry import VERTICAL, Line, normal_form
@@ -19,56 +21,96 @@ from station.vision._linefit import recursive_fit
 from station.vision._moment import intensity_moment
 from station.vision._params import MeasureParams
 from station.vision._result import EdgeFit
-from station.vision._testbox import segment_edge
+from station.vision._testbox import segment_edge_sparse
+
+Float32Image = npt.NDArray[np.float32]
+IntArray = npt.NDArray[np.intp]
+
+
+#: The edge each response's polarity belongs to (``directional_responses``).
+_NEGATIVE_EDGE: dict[bool, Edge] = {True: "top", False: "left"}
+_POSITIVE_EDGE: dict[bool, Edge] = {True: "bottom", False: "right"}
 
 
 def paper_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
     """Stages 1-6 for all four edges; raises EdgeNotFoundError naming what was not found."""
-    filtered = apply_filter(gray, params.filter, gauss_sigma=params.gauss_sigma)
-    responses = directional_responses(filtered)
+    # no filter: the operators work on the 8-bit image itself (the same values as on its float copy)
+    filtered = (
+        gray if params.filter == "none" else apply_filter(gray, params.filter, gauss_sigma=params.gauss_sigma)
+    )
     fits: dict[Edge, EdgeFit] = {}
     problems: dict[Edge, str] = {}
-    for edge in EDGES:
-        thresholded = apply_threshold(responses[edge], params.threshold)
-        pixels = segment_edge(
-            thresholded,
-            edge,
-            testheight=params.testheight,
-            testwidth=params.testwidth,
-            skip=params.skip,
-            backoff=params.backoff_rows,
-        )
-        refined, valid = intensity_moment(gray, pixels)
-        pts = refined[valid]
-        if len(pts) < params.min_edge_points:
-            problems[edge] = f"{len(pts)} points (at least {params.min_edge_points} needed)"
-            continue
-        vertical = edge in VERTICAL
-        along, across = (pts[:, 1], pts[:, 0]) if vertical else (pts[:, 0], pts[:, 1])
-        fit = recursive_fit(
-            along,
-            across,
-            corr_tol=params.corr_tol,
-            change_tol=params.change_tol,
-            max_removals=params.max_removals,
-            min_points=params.min_edge_points,
-        )
-        if fit.rms_px > params.residual_limit_px:
-            problems[edge] = (
-                f"its {int(fit.kept.sum())} points are not on a line (rms {fit.rms_px:.1f} px > "
-                f"{params.residual_limit_px} px)"
-            )
-            continue
-        line: Line = normal_form(fit.slope, fit.intercept, vertical=vertical)
-        fits[edge] = EdgeFit(
-            name=edge,
-            line=line,
-            segmented=len(pixels),
-            used=int(fit.kept.sum()),
-            removed=fit.removed,
-            rms_px=fit.rms_px,
-            points=np.ascontiguousarray(pts[fit.kept]),
-        )
+    for horizontal, response in zip((True, False), operator_responses(filtered), strict=True):
+        lo, hi, _, _ = cv2.minMaxLoc(response)
+        for edge, sign, peak in (
+            (_NEGATIVE_EDGE[horizontal], -1.0, -lo),
+            (_POSITIVE_EDGE[horizontal], 1.0, hi),
+        ):
+            outcome = _edge_fit(gray, response, sign, edge, peak, params)
+            if isinstance(outcome, str):
+                problems[edge] = outcome
+            else:
+                fits[edge] = outcome
     if problems:
         raise EdgeNotFoundError(describe_missing(problems), found=tuple(fits))
     return fits
+
+
+def _pixels(response: Float32Image, sign: float, edge: Edge, peak: float, params: MeasureParams) -> IntArray:
+    """Stages 3-4 for one edge: the threshold and the TestBox scan (``segment_edge`` on the
+    thresholded response, computed on the pixels above the threshold only)."""
+    if peak <= 0.0:  # apply_threshold: nothing above the threshold
+        return np.zeros((0, 2), np.intp)
+    level = max(threshold_level(peak, params.threshold), 0.0)
+    # a scalar second operand is what OpenCV means; its stubs only name arrays
+    above = cv2.compare(response, -level if sign < 0 else level, cv2.CMP_LT if sign < 0 else cv2.CMP_GT)  # type: ignore[call-overload]
+    found = cv2.findNonZero(above)
+    if found is None:
+        return np.zeros((0, 2), np.intp)
+    return segment_edge_sparse(
+        response,
+        sign,
+        edge,
+        level,
+        found.reshape(-1, 2).astype(np.intp),
+        testheight=params.testheight,
+        testwidth=params.testwidth,
+        skip=params.skip,
+        backoff=params.backoff_rows,
+    )
+
+
+def _edge_fit(
+    gray: Gray8, response: Float32Image, sign: float, edge: Edge, peak: float, params: MeasureParams
+) -> EdgeFit | str:
+    """Stages 3-6 for one edge: its fit, or why it was not found."""
+    pixels = _pixels(response, sign, edge, peak, params)
+    refined, valid = intensity_moment(gray, pixels)
+    pts = refined[valid]
+    if len(pts) < params.min_edge_points:
+        return f"{len(pts)} points (at least {params.min_edge_points} needed)"
+    vertical = edge in VERTICAL
+    along, across = (pts[:, 1], pts[:, 0]) if vertical else (pts[:, 0], pts[:, 1])
+    fit = recursive_fit(
+        along,
+        across,
+        corr_tol=params.corr_tol,
+        change_tol=params.change_tol,
+        max_removals=params.max_removals,
+        min_points=params.min_edge_points,
+    )
+    if fit.rms_px > params.residual_limit_px:
+        return (
+            f"its {int(fit.kept.sum())} points are not on a line (rms {fit.rms_px:.1f} px > "
+            f"{params.residual_limit_px} px)"
+        )
+    line: Line = normal_form(fit.slope, fit.intercept, vertical=vertical)
+    return EdgeFit(
+        name=edge,
+        line=line,
+        segmented=len(pixels),
+        used=int(fit.kept.sum()),
+        removed=fit.removed,
+        rms_px=fit.rms_px,
+        points=np.ascontiguousarray(pts[fit.kept]),
+    )

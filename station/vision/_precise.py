@@ -24,6 +24,7 @@ with the stages that limit its accuracy replaced (accuracy.md).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -31,55 +32,85 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from station.vision._coarse import CoarseCross, Illumination, coarse_cross, fast_median
+from station.vision._coarse import CoarseCross, Illumination, coarse_cross
 from station.vision._edges import EDGES, Edge
 from station.vision._errors import EdgeNotFoundError, describe_missing
-from station.vision._geometry import VERTICAL, Line, intersect, normal_form
+from station.vision._geometry import VERTICAL
 from station.vision._image import Gray8
 from station.vision._params import MeasureParams
 from station.vision._result import EdgeFit
 
 FloatArray = npt.NDArray[np.float64]
 
-#: Edges sampled together: the same orientation, profiles along the same image axis.
-_GROUPS: tuple[tuple[Edge, Edge], ...] = (("top", "bottom"), ("left", "right"))
+
+#: Edge order of every per-edge array below: EDGES (top, bottom, left, right); left and right are vertical.
+_VERTICAL = np.array([e in VERTICAL for e in EDGES])
 #: +1 where the intensity rises across the edge in the scan direction (+y or +x), -1 where it falls.
-_POLARITY: dict[Edge, float] = {"top": -1.0, "bottom": 1.0, "left": -1.0, "right": 1.0}
+_POLARITY = np.array([-1.0, 1.0, -1.0, 1.0], np.float32)
+_ROWS = np.arange(len(EDGES))
 
 
 @dataclass(frozen=True)
-class _EdgeModel:
-    """An edge as ``across = slope * along + intercept`` in image px (along = x for horizontal edges)."""
+class _Models:
+    """The four edges as ``across = slope * along + intercept`` in image px (along = x for horizontal
+    edges, y for vertical ones), arrays in EDGES order."""
 
-    slope: float
-    intercept: float
+    slope: FloatArray
+    intercept: FloatArray
+
+    def lines(self) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Normal forms ``a x + b y = c`` (``_geometry.normal_form``), as arrays (a, b, c)."""
+        norm = np.hypot(1.0, self.slope)
+        a = np.where(_VERTICAL, 1.0, -self.slope) / norm
+        b = np.where(_VERTICAL, -self.slope, 1.0) / norm
+        return a, b, self.intercept / norm
 
 
-def _initial_model(coarse: CoarseCross, edge: Edge, shape: tuple[int, int]) -> _EdgeModel:
+def _initial_models(coarse: CoarseCross, shape: tuple[int, int]) -> _Models:
     h, w = shape
     cx, cy = (w - 1) / 2.0, (h - 1) / 2.0
     c, s = math.cos(coarse.theta), math.sin(coarse.theta)
-    off = coarse.offsets[edge]
-    if edge in VERTICAL:
-        # u = (x - cx) c + (y - cy) s = off  ->  x = cx + (off - (y - cy) s) / c
-        return _EdgeModel(-s / c, cx + (off + cy * s) / c)
-    # v = -(x - cx) s + (y - cy) c = off  ->  y = cy + (off + (x - cx) s) / c
-    return _EdgeModel(s / c, cy + (off - cx * s) / c)
+    off = np.array([coarse.offsets[e] for e in EDGES])
+    # vertical: u = (x - cx) c + (y - cy) s = off  ->  x = cx + (off - (y - cy) s) / c
+    # horizontal: v = -(x - cx) s + (y - cy) c = off  ->  y = cy + (off + (x - cx) s) / c
+    slope = np.where(_VERTICAL, -s / c, s / c)
+    intercept = np.where(_VERTICAL, cx + (off + cy * s) / c, cy + (off - cx * s) / c)
+    return _Models(slope, intercept)
 
 
-def _crossing_extent(models: dict[Edge, _EdgeModel]) -> dict[Edge, tuple[float, float]]:
-    """Per edge: (along coordinate of the crossing's centre, half-width of the perpendicular groove)."""
-    lines = {e: _line_of(m, vertical=e in VERTICAL) for e, m in models.items()}
-    pts = np.array([intersect(lines[a], lines[b]) for a in ("top", "bottom") for b in ("left", "right")])
-    out: dict[Edge, tuple[float, float]] = {}
-    for edge in EDGES:
-        along = pts[:, 1] if edge in VERTICAL else pts[:, 0]
-        out[edge] = (float(along.mean()), float(along.max() - along.min()) / 2.0)
-    return out
+def _crossing_extent(models: _Models) -> tuple[FloatArray, FloatArray]:
+    """Per edge: the along coordinate of the crossing's centre and the half-width of the perpendicular
+    groove, from the four vertices of the models."""
+    sh, ih = models.slope[:2, None], models.intercept[:2, None]  # y = sh x + ih
+    sv, iv = models.slope[None, 2:], models.intercept[None, 2:]  # x = sv y + iv
+    x = (sv * ih + iv) / (1.0 - sv * sh)  # (horizontal edge, vertical edge)
+    y = sh * x + ih
+    along = np.stack([x.ravel(), x.ravel(), y.ravel(), y.ravel()])  # per edge: its along coordinates
+    return along.mean(axis=1), (along.max(axis=1) - along.min(axis=1)) / 2.0
 
 
-def _line_of(model: _EdgeModel, *, vertical: bool) -> Line:
-    return normal_form(model.slope, model.intercept, vertical=vertical)
+@lru_cache(maxsize=32)
+def _profile_grid(
+    shape: tuple[int, int], border: int, step: int
+) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]]:
+    """Along coordinates of every profile of the four edges, concatenated in EDGES order, and the
+    owner (edge index) of each."""
+    h, w = shape
+    horizontal = np.arange(border, w - border, step, dtype=np.intp)
+    vertical = np.arange(border, h - border, step, dtype=np.intp)
+    along = np.concatenate([horizontal, horizontal, vertical, vertical])
+    owner = np.repeat(_ROWS, [horizontal.size, horizontal.size, vertical.size, vertical.size])
+    along.setflags(write=False)
+    owner.setflags(write=False)
+    return along, owner
+
+
+@lru_cache(maxsize=16)
+def _moment_weights(n: int) -> npt.NDArray[np.float32]:
+    """(n, 2): ones and the positions 0.5 ... n - 0.5: the sum and first moment of n differences."""
+    weights = np.column_stack([np.ones(n), np.arange(n) + 0.5]).astype(np.float32)
+    weights.setflags(write=False)
+    return weights
 
 
 @lru_cache(maxsize=16)
@@ -104,114 +135,216 @@ def _suppress_impulses(samples: npt.NDArray[np.float32], threshold: float) -> No
         b[bad] = med[bad]
 
 
+@dataclass(frozen=True)
+class _Profiles:
+    """Sub-pixel edge positions of the profiles whose window fits inside the image.
+
+    ``owner``: edge index (EDGES order, grouped); ``along``: the profile's column (horizontal edges)
+    or row (vertical edges); ``across``: the edge position along the profile (px); ``strength``: the
+    window's summed first difference (the local contrast, DN); ``spread``: the second central moment
+    of the differences (px^2), or None.
+    """
+
+    owner: npt.NDArray[np.intp]
+    along: FloatArray
+    across: FloatArray
+    strength: FloatArray
+    spread: FloatArray | None
+
+
 def _profile_points(
     img: npt.NDArray[np.uint8] | npt.NDArray[np.float32],
     *,
-    vertical: bool,
     along: npt.NDArray[np.intp],
+    owner: npt.NDArray[np.intp],
     mu: FloatArray,
-    polarity: npt.NDArray[np.float32],
     half: int,
     impulse_dn: float,
     illumination: Illumination | None = None,
     with_spread: bool = True,
-) -> tuple[npt.NDArray[np.bool_], FloatArray, FloatArray, FloatArray | None]:
-    """Sub-pixel edge positions of many profiles at once (module docstring, step 2).
+) -> _Profiles:
+    """Sub-pixel edge positions of the profiles of all four edges in one gather (module docstring,
+    step 2).
 
-    Profile i runs across the edge at ``along[i]`` (a column for horizontal edges, a row for vertical
-    ones), in a window of ``2 * half + 2`` samples about the predicted position ``mu[i]``; ``polarity``
-    is +1 where the intensity rises along the scan. Profiles of several edges with the same orientation
-    go in one call. Returns ``(inside, across, strength, spread)``: ``inside`` marks the profiles whose
-    window fits in the image; the others are for those only: ``across`` the position (px),
-    ``strength`` the window's summed first difference (the local contrast, DN), ``spread`` the second
-    central moment of the differences (px^2).
+    Profile i runs across edge ``owner[i]`` at ``along[i]`` (a column for horizontal edges, a row for
+    vertical ones), in a window of ``2 * half + 2`` samples about the predicted position ``mu[i]``.
+    Profiles whose window does not fit inside the image are dropped.
     """
     h, w = img.shape
-    n_across = w if vertical else h
+    n = 2 * half + 2
+    vertical = _VERTICAL[owner]
     base = np.floor(mu).astype(np.intp) - half
-    inside = (base >= 0) & (base + 2 * half + 1 < n_across)
-    along, mu, base, polarity = along[inside], mu[inside], base[inside], polarity[inside]
-    k = base[:, None] + np.arange(2 * half + 2)[None, :]
-    flat = along[:, None] * w + k if vertical else k * w + along[:, None]
+    inside = (base >= 0) & (base + n - 1 < np.where(vertical, w, h))
+    if not inside.all():
+        along, owner, mu, base, vertical = (
+            along[inside],
+            owner[inside],
+            mu[inside],
+            base[inside],
+            vertical[inside],
+        )
+    # one gather for every window: a vertical edge's window runs along a row (stride 1), a horizontal
+    # edge's down a column (stride w)
+    start = np.where(vertical, along * w + base, base * w + along)
+    stride = np.where(vertical, 1, w)
+    flat = start[:, None] + stride[:, None] * np.arange(n)[None, :]
     samples = np.take(img, flat).astype(np.float32)
     if illumination is not None:
         # flat field: the illumination is smooth, linear over one window: divide the samples by it,
-        # evaluated at the window's two ends
-        ends = np.column_stack([base, base + 2 * half + 1]).astype(np.float64)
-        a = np.broadcast_to(along[:, None].astype(np.float64), ends.shape)
-        v = illumination.at(ends, a) if vertical else illumination.at(a, ends)
-        ramp = _ramp(2 * half + 2)
-        v32 = v.astype(np.float32)
-        samples /= v32[:, :1] + (v32[:, 1:] - v32[:, :1]) * ramp
+        # evaluated at the window's two ends (whole pixels)
+        end = base + (n - 1)
+        xs = np.concatenate([np.where(vertical, base, along), np.where(vertical, end, along)])
+        ys = np.concatenate([np.where(vertical, along, base), np.where(vertical, along, end)])
+        v32 = illumination.at_pixels(xs, ys).astype(np.float32).reshape(2, -1)
+        samples /= v32[0][:, None] + (v32[1] - v32[0])[:, None] * _ramp(n)
     _suppress_impulses(samples, impulse_dn)
-    d = (samples[:, 1:] - samples[:, :-1]) * polarity[:, None]
-    # positions relative to each window's first sample keep float32 exact to ~1e-6 px
-    pos = np.arange(2 * half + 1, dtype=np.float32) + np.float32(0.5)
-    mu_rel = (mu - base).astype(np.float32)
-    weight = np.clip(np.float32(half + 0.5) - np.abs(pos[None, :] - mu_rel[:, None]), 0.0, 1.0)
-    wd = weight * d
-    strength = wd.sum(axis=1, dtype=np.float64)
-    safe = np.where(strength > 0, strength, 1.0)
-    rel = (wd @ pos).astype(np.float64) / safe
+    d = samples[:, 1:] - samples[:, :-1]
+    # The window of differences is exactly symmetric about mu: 2 half + 1 differences at positions
+    # 0.5 ... 2 half + 0.5 from the first sample, the two end ones weighted by the fractions of their
+    # pixels inside (1 - f and f, f = mu - floor(mu)), the others fully. The polarity cancels in the
+    # centroid and the spread; only the strength takes its sign.
+    frac = (mu - np.floor(mu)).astype(np.float32)
+    d[:, 0] *= 1.0 - frac
+    d[:, -1] *= frac
+    pos = np.arange(n - 1, dtype=np.float32) + np.float32(0.5)
+    moments = d @ _moment_weights(n - 1)  # (sum, sum of positions): one pass over the differences
+    raw = moments[:, 0].astype(np.float64)
+    strength = raw * _POLARITY[owner]
+    safe = np.where(strength > 0, raw, 1.0)
+    rel = moments[:, 1].astype(np.float64) / safe
     spread = (
-        ((wd * (pos[None, :] - rel[:, None].astype(np.float32)) ** 2).sum(axis=1) / safe)
+        ((d * (pos[None, :] - rel[:, None].astype(np.float32)) ** 2).sum(axis=1) / safe)
         if with_spread
         else None
     )
-    return inside, base + rel, strength, spread
+    return _Profiles(owner, along.astype(np.float64), base + rel, strength, spread)
 
 
-def _tls(x: FloatArray, y: FloatArray) -> Line:
-    """Total-least-squares line through points (closed form for 2-D: the principal axis)."""
-    n = x.size
-    mx, my = float(x.sum()) / n, float(y.sum()) / n
-    dx, dy = x - mx, y - my
-    sxx, syy, sxy = float(dx @ dx), float(dy @ dy), float(dx @ dy)
-    phi = 0.5 * math.atan2(2.0 * sxy, sxx - syy)  # direction of the line
-    nx, ny = -math.sin(phi), math.cos(phi)
-    return (nx, ny, nx * mx + ny * my)
+class _Groups:
+    """Per-edge statistics of values grouped by edge (``owner`` sorted), each in a few array calls."""
+
+    def __init__(self, owner: npt.NDArray[np.intp]) -> None:
+        self.owner = owner
+        counts = np.bincount(owner, minlength=len(EDGES))
+        self.counts = counts
+        self.slot = np.arange(owner.size) - (np.cumsum(counts) - counts)[owner]
+        self.width = max(int(counts.max()), 1)
+
+    def count(self, sel: npt.NDArray[np.bool_]) -> npt.NDArray[np.intp]:
+        return np.bincount(self.owner[sel], minlength=len(EDGES))
+
+    def median(self, values: FloatArray, sel: npt.NDArray[np.bool_]) -> FloatArray:
+        """Per edge, the upper median of ``values[sel]`` (``fast_median``'s); inf for an empty group."""
+        grid = np.full((len(EDGES), self.width), np.inf)
+        grid[self.owner[sel], self.slot[sel]] = values[sel]
+        grid.sort(axis=1)
+        return grid[_ROWS, self.count(sel) // 2]
+
+    def sums(self, sel: npt.NDArray[np.bool_], *values: FloatArray) -> list[FloatArray]:
+        o = self.owner[sel]
+        return [np.bincount(o, weights=v, minlength=len(EDGES)).astype(np.float64) for v in values]
 
 
-def _robust_tls(
-    x: FloatArray, y: FloatArray, prior: Line, outlier_sigma: float, *, rounds: int = 2
-) -> tuple[Line, npt.NDArray[np.bool_], float]:
-    """Orthogonal line fit with outliers rejected beyond ``outlier_sigma`` robust sigmas.
+def _tls(
+    groups: _Groups, x: FloatArray, y: FloatArray, sel: npt.NDArray[np.bool_]
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Per edge, the total-least-squares line through its selected points (the principal axis):
+    arrays (a, b, c) of ``a x + b y = c``."""
+    n = np.maximum(groups.count(sel), 1)
+    xs, ys = x[sel], y[sel]
+    sx, sy = groups.sums(sel, xs, ys)
+    mx, my = sx / n, sy / n
+    o = groups.owner[sel]
+    dx, dy = xs - mx[o], ys - my[o]
+    sxx, syy, sxy = groups.sums(sel, dx * dx, dy * dy, dx * dy)
+    phi = 0.5 * np.arctan2(2.0 * sxy, sxx - syy)  # direction of the line
+    nx, ny = -np.sin(phi), np.cos(phi)
+    return nx, ny, nx * mx + ny * my
 
-    Residuals are first taken from ``prior`` (the previous pass's line, close to the truth), so a
-    cluster of glint points cannot drag the first estimate; the robust sigma is 1.4826 MAD.
-    Returns (line, inliers, rms of the inliers' residuals).
+
+def _fit_edges(
+    p: _Profiles, models: _Models, params: MeasureParams, *, half: int, last: bool
+) -> tuple[dict[Edge, EdgeFit], _Models, float | None, dict[Edge, str]]:
+    """The four edges' lines from their profiles (module docstring, step 3), all edges at once.
+
+    Returns (fits on the last pass, new models, median line spread, problems: per edge the reason it
+    was not found).
     """
-    a, b, c = prior
-    resid = a * x + b * y - c
-    inliers = np.ones(x.size, dtype=bool)
-    line = prior
-    for _ in range(rounds):
-        r = resid[inliers]
-        med = fast_median(r)
-        sigma = max(1.4826 * fast_median(np.abs(r - med)), 1e-3)
-        inliers = np.abs(resid - med) <= outlier_sigma * sigma
-        if inliers.sum() < 3:
-            raise ValueError("too few inliers")
-        line = _tls(x[inliers], y[inliers])
-        a, b, c = line
-        resid = a * x + b * y - c
-    ri = resid[inliers]
-    rms = math.sqrt(float(ri @ ri) / ri.size)
-    return line, inliers, rms
+    groups = _Groups(p.owner)
+    owner, t, a = p.owner, p.along, p.across
+    problems: dict[Edge, str] = {}
+    ok = np.ones(len(EDGES), bool)
 
+    def fail(where: npt.NDArray[np.bool_], reason: Callable[[int], str]) -> None:
+        for i in np.flatnonzero(where & ok).tolist():
+            problems[EDGES[i]] = reason(i)
+        ok[where] = False
 
-def _orient(line: Line, *, vertical: bool) -> Line:
-    a, b, c = line
-    if (vertical and a < 0) or (not vertical and b < 0):
-        return (-a, -b, -c)
-    return (a, b, c)
-
-
-def _model_from_line(line: Line, *, vertical: bool) -> _EdgeModel:
-    a, b, c = line
-    if vertical:  # a x + b y = c -> x = (c - b y) / a
-        return _EdgeModel(-b / a, c / a)
-    return _EdgeModel(-a / b, c / b)
+    counts = groups.counts
+    fail(
+        counts < params.min_edge_points,
+        lambda i: (
+            f"only {counts[i]} of its profiles fit inside the frame (at least {params.min_edge_points}): "
+            "it runs too close to the border; keep the groove corners 10 px or more inside the frame"
+        ),
+    )
+    contrast = groups.median(p.strength, np.ones(owner.size, bool))
+    fail(
+        contrast < params.min_contrast_dn,
+        lambda i: f"its contrast is {contrast[i]:.1f} DN (at least {params.min_contrast_dn} DN)",
+    )
+    tol = half / 2.0 if last else half - 2.0
+    good = ok[owner] & (p.strength > params.min_contrast_fraction * contrast[owner])
+    good &= np.abs(a - (models.slope[owner] * t + models.intercept[owner])) < tol
+    n_good = groups.count(good)
+    fail(n_good < params.min_edge_points, lambda i: f"only {n_good[i]} profiles show the edge")
+    vertical = _VERTICAL[owner]
+    x, y = np.where(vertical, a, t), np.where(vertical, t, a)
+    # robust orthogonal fit: residuals first from the previous pass's line, outliers beyond
+    # outlier_sigma robust (1.4826 MAD) sigmas dropped, the rest fitted by total least squares
+    la, lb, lc = models.lines()
+    inliers = good & ok[owner]
+    resid = la[owner] * x + lb[owner] * y - lc[owner]
+    for _ in range(2 if last else 1):
+        med = groups.median(resid, inliers)
+        dev = np.abs(resid - med[owner])
+        sigma = np.maximum(1.4826 * groups.median(dev, inliers), 1e-3)
+        inliers = good & ok[owner] & (dev <= params.outlier_sigma * sigma[owner])
+        n_in = groups.count(inliers)
+        fail(n_in < 3, lambda i: "its points do not lie on a line")
+        inliers &= ok[owner]
+        la, lb, lc = _tls(groups, x, y, inliers)
+        resid = la[owner] * x + lb[owner] * y - lc[owner]
+    flip = np.where(_VERTICAL, la < 0, lb < 0)
+    sign = np.where(flip, -1.0, 1.0)
+    la, lb, lc = la * sign, lb * sign, lc * sign
+    n_in = np.maximum(groups.count(inliers), 1)
+    (ss,) = groups.sums(inliers, resid[inliers] ** 2)
+    rms = np.sqrt(ss / n_in)
+    if last:  # earlier passes only steer the windows
+        limit = params.residual_limit_px
+        fail(rms > limit, lambda i: f"its points are not on a line (rms {rms[i]:.2f} px)")
+    fits: dict[Edge, EdgeFit] = {}
+    if last and not problems:
+        for i, edge in enumerate(EDGES):
+            sel = inliers & (owner == i)
+            used = int(n_in[i])
+            fits[edge] = EdgeFit(
+                name=edge,
+                line=(float(la[i]), float(lb[i]), float(lc[i])),
+                segmented=int(counts[i]),
+                used=used,
+                removed=int(counts[i]) - used,
+                rms_px=float(rms[i]),
+                points=np.column_stack([x[sel], y[sel]]),
+            )
+    spread = None
+    if p.spread is not None and ok.all():
+        spread = float(np.sort(groups.median(p.spread, good))[len(EDGES) // 2])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        slope = np.where(_VERTICAL, -lb / la, -la / lb)
+        intercept = np.where(_VERTICAL, lc / la, lc / lb)
+    return fits, _Models(slope, intercept), spread, problems
 
 
 @lru_cache(maxsize=4)
@@ -241,58 +374,6 @@ def undistort(img: npt.NDArray[np.float32], params: MeasureParams) -> npt.NDArra
     )
 
 
-def _fit_edge(
-    edge: Edge,
-    t: FloatArray,
-    a: FloatArray,
-    strength: FloatArray,
-    spread: FloatArray | None,
-    model: _EdgeModel,
-    params: MeasureParams,
-    *,
-    half: int,
-    last: bool,
-) -> tuple[EdgeFit | None, _EdgeModel, float | None] | str:
-    """One edge's line from its profiles: (fit on the last pass, new model, median spread), or the
-    reason it was not found."""
-    if t.size < params.min_edge_points:
-        return (
-            f"only {t.size} of its profiles fit inside the frame (at least {params.min_edge_points}): "
-            "it runs too close to the border; keep the groove corners 10 px or more inside the frame"
-        )
-    contrast = fast_median(strength)
-    if contrast < params.min_contrast_dn:
-        return f"its contrast is {contrast:.1f} DN (at least {params.min_contrast_dn} DN)"
-    good = strength > params.min_contrast_fraction * contrast
-    good &= np.abs(a - (model.slope * t + model.intercept)) < (half / 2.0 if last else half - 2.0)
-    if good.sum() < params.min_edge_points:
-        return f"only {int(good.sum())} profiles show the edge"
-    vertical = edge in VERTICAL
-    x, y = (a[good], t[good]) if vertical else (t[good], a[good])
-    try:
-        line, inliers, rms = _robust_tls(
-            x, y, _line_of(model, vertical=vertical), params.outlier_sigma, rounds=2 if last else 1
-        )
-    except ValueError:
-        return "its points do not lie on a line"
-    line = _orient(line, vertical=vertical)
-    if last and rms > params.residual_limit_px:  # earlier passes only steer the windows
-        return f"its points are not on a line (rms {rms:.2f} px)"
-    fit = None
-    if last:
-        fit = EdgeFit(
-            name=edge,
-            line=line,
-            segmented=int(t.size),
-            used=int(inliers.sum()),
-            removed=int(t.size - inliers.sum()),
-            rms_px=rms,
-            points=np.column_stack([x[inliers], y[inliers]]),
-        )
-    spread_median = fast_median(spread[good]) if spread is not None else None
-    return fit, _model_from_line(line, vertical=vertical), spread_median
-
-
 def precise_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
     """Four robust sub-pixel edge lines (module docstring); raises EdgeNotFoundError or GeometryError."""
     h, w = gray.shape
@@ -301,74 +382,37 @@ def precise_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
         img = undistort(gray.astype(np.float32), params)
         gray = np.clip(np.rint(img), 0, 255).astype(np.uint8)  # the coarse stage works on 8 bits
     coarse = coarse_cross(gray, params)
-    models = {e: _initial_model(coarse, e, (h, w)) for e in EDGES}
+    models = _initial_models(coarse, (h, w))
     # the first pass steers from the coarse cross (a pixel or two off at the frame's ends): wide window
     half = params.window_px if params.window_px is not None else 8
-    border = half + 2
     fits: dict[Edge, EdgeFit] = {}
-    problems: dict[Edge, str] = {}
     for pass_no in range(params.passes):
         last = pass_no == params.passes - 1
-        spreads: list[float] = []
-        new_models: dict[Edge, _EdgeModel] = {}
-        crossing = _crossing_extent(models)
-        for group in _GROUPS:
-            vertical = group[0] in VERTICAL
-            length = h if vertical else w
-            # passes before the last only steer the windows: every 8th profile is plenty; the last
-            # takes every profile_step-th column (row)
-            along_all = np.arange(border, length - border, params.profile_step if last else 8, dtype=np.intp)
-            parts: list[tuple[Edge, npt.NDArray[np.intp], FloatArray]] = []
-            for edge in group:
-                centre_along, half_groove = crossing[edge]
-                along = along_all[np.abs(along_all - centre_along) > half_groove + params.corner_margin_px]
-                m = models[edge]
-                parts.append((edge, along, m.slope * along + m.intercept))
-            along_cat = np.concatenate([a for _, a, _ in parts])
-            owner = np.concatenate([np.full(a.size, i) for i, (_, a, _) in enumerate(parts)])
-            polarity = np.array([_POLARITY[e] for e, _, _ in parts], np.float32)[owner]
-            inside, across, strength, spread = _profile_points(
-                img,
-                vertical=vertical,
-                along=along_cat,
-                mu=np.concatenate([mu for _, _, mu in parts]),
-                polarity=polarity,
-                half=half,
-                impulse_dn=params.impulse_dn,
-                illumination=coarse.illumination,  # vignetting would bias the profiles' centroids
-                with_spread=not last,
-            )
-            owner = owner[inside]
-            along_cat = along_cat[inside]
-            for i, (edge, _, _) in enumerate(parts):
-                sel = owner == i
-                outcome = _fit_edge(
-                    edge,
-                    along_cat[sel].astype(np.float64),
-                    across[sel],
-                    strength[sel],
-                    None if spread is None else spread[sel],
-                    models[edge],
-                    params,
-                    half=half,
-                    last=last,
-                )
-                if isinstance(outcome, str):
-                    problems[edge] = outcome
-                    continue
-                fit, model, spread_median = outcome
-                new_models[edge] = model
-                if spread_median is not None:
-                    spreads.append(spread_median)
-                if fit is not None:
-                    fits[edge] = fit
+        # passes before the last only steer the windows: every 8th profile is plenty; the last
+        # takes every profile_step-th column (row)
+        along, owner = _profile_grid((h, w), half + 2, params.profile_step if last else 8)
+        centre_along, half_groove = _crossing_extent(models)
+        # the rounded land corners: no profile within the perpendicular groove plus a margin
+        keep = np.abs(along - centre_along[owner]) > (half_groove + params.corner_margin_px)[owner]
+        along, owner = along[keep], owner[keep]
+        profiles = _profile_points(
+            img,
+            along=along,
+            owner=owner,
+            mu=models.slope[owner] * along + models.intercept[owner],
+            half=half,
+            impulse_dn=params.impulse_dn,
+            illumination=coarse.illumination,  # vignetting would bias the profiles' centroids
+            with_spread=not last,
+        )
+        fits, new_models, spread, problems = _fit_edges(profiles, models, params, half=half, last=last)
         if problems:
-            raise EdgeNotFoundError(describe_missing(problems), found=tuple(new_models))
+            found = tuple(e for e in EDGES if e not in problems)
+            raise EdgeNotFoundError(describe_missing(problems), found=found)
         models = new_models
-        if params.window_px is None and spreads:
+        if params.window_px is None and spread is not None:
             # window half-width: window_sigmas line-spread sigmas + 1 px (spread includes the two unit
             # boxes of the first difference: 2/12 px^2)
-            sigma = math.sqrt(max(fast_median(np.asarray(spreads)) - 1.0 / 6.0, 0.1))
+            sigma = math.sqrt(max(spread - 1.0 / 6.0, 0.1))
             half = int(np.clip(math.ceil(params.window_sigmas * sigma) + 1, 3, 12))
-            border = half + 2
     return fits

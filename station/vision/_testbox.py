@@ -18,8 +18,6 @@ transposes the image for the vertical edges.
 
 from __future__ import annotations
 
-from bisect import bisect_left
-
 import cv2
 import numpy as np
 import numpy.typing as npt
@@ -59,30 +57,47 @@ def testbox_scan(
     candidate rows come from one vectorised ``acceptance_mask``.
     """
     accept = acceptance_mask(response, testheight=testheight, testwidth=testwidth)
-    w = response.shape[1]
-    found = cv2.findNonZero(accept.view(np.uint8))  # (x, y) sorted by row; fast on sparse masks
+    h, w = response.shape
+    found = cv2.findNonZero(accept.view(np.uint8))  # (x, y); fast on sparse masks
     xy = np.zeros((0, 2), np.intp) if found is None else found.reshape(-1, 2).astype(np.intp)
-    order = np.argsort(xy[:, 0], kind="stable")  # by column, rows still ascending within each
-    cols, rows = xy[order, 0], xy[order, 1]
-    bounds = np.searchsorted(cols, np.arange(w + 1)).tolist()
-    row_list = rows.tolist()
-    found_cols: list[int] = []
-    found_rows: list[int] = []
-    last: int | None = None
-    for j in range(0, w, skip):
-        lo, hi = bounds[j], bounds[j + 1]
-        if lo == hi:
-            last = None
-            continue
-        start = 0 if last is None else max(0, last - backoff)
-        k = bisect_left(row_list, start, lo, hi)
-        if k == hi:
-            last = None
-            continue
-        last = row_list[k]
-        found_cols.append(j)
-        found_rows.append(last)
-    return np.column_stack([np.asarray(found_cols, np.intp), np.asarray(found_rows, np.intp)]).reshape(-1, 2)
+    return scan_columns(xy[:, 0], xy[:, 1], (h, w), skip=skip, backoff=backoff)
+
+
+def scan_columns(
+    cols: npt.NDArray[np.intp],
+    rows: npt.NDArray[np.intp],
+    shape: tuple[int, int],
+    *,
+    skip: int,
+    backoff: int,
+) -> npt.NDArray[np.intp]:
+    """The TestBox's walk over the accepted pixels ``(cols, rows)`` of a (h, w) view: (N, 2) ``(col, row)``.
+
+    Columns 0, SKIP, 2 SKIP ... are visited in turn; in each the box takes the first accepted pixel at
+    or below ``start``: row 0 after a column without a hit, else the previous hit's row minus
+    ``backoff``. Each column's start depends only on the previous column's hit, so the walk is found
+    as a fixed point, all columns at once: after k rounds the first k columns of every run of hits
+    are final, and a round that changes no start has reproduced the sequential walk exactly
+    (usually after 2-4 rounds).
+    """
+    h, w = shape
+    visited = (cols % skip) == 0
+    key = np.sort(cols[visited] * h + rows[visited])  # by column, then row
+    col0 = np.arange(0, w, skip, dtype=np.intp) * h
+    end = np.searchsorted(key, col0 + h)
+    start = np.zeros(col0.size, np.intp)
+    last_key = max(key.size - 1, 0)
+    while True:
+        idx = np.searchsorted(key, col0 + start)
+        hit = idx < end
+        row = np.where(hit, key[np.minimum(idx, last_key)] - col0, -1) if key.size else np.full(col0.size, -1)
+        following = np.zeros(col0.size, np.intp)
+        following[1:] = np.where(hit[:-1], np.maximum(row[:-1] - backoff, 0), 0)
+        if np.array_equal(following, start):
+            break
+        start = following
+    found = np.flatnonzero(hit)
+    return np.column_stack([found * skip, row[found]]).astype(np.intp).reshape(-1, 2)
 
 
 def scan_view(response: Float32Image, edge: Edge) -> Float32Image:
@@ -121,4 +136,80 @@ def segment_edge(
     view = scan_view(thresholded, edge)
     pts = testbox_scan(view, testheight=testheight, testwidth=testwidth, skip=skip, backoff=backoff)
     h, w = thresholded.shape
+    return view_to_image(pts, edge, (h, w))
+
+
+#: Per edge: (the image axis the scan runs along: 0 = down the rows, 1 = along the columns; scan
+#: reversed: from the bottom or from the right).
+_SCAN: dict[Edge, tuple[int, bool]] = {
+    "top": (0, False),
+    "bottom": (0, True),
+    "left": (1, False),
+    "right": (1, True),
+}
+
+
+def segment_edge_sparse(
+    response: Float32Image,
+    sign: float,
+    edge: Edge,
+    level: float,
+    candidates: npt.NDArray[np.intp],
+    *,
+    testheight: int,
+    testwidth: int,
+    skip: int,
+    backoff: int,
+) -> npt.NDArray[np.intp]:
+    """``segment_edge`` on the pixels above the threshold only: the same points, in the same order.
+
+    ``sign * response`` is the edge's operator response before its negative values are zeroed
+    (``directional_responses``: ``top`` is -1 times the downward operator), ``level`` >= 0 the
+    threshold (values above it are kept, as ``apply_threshold`` keeps them) and ``candidates`` (N, 2)
+    ``(x, y)`` the pixels above it. Instead of
+    full-image running maxima (``acceptance_mask``), the three rules are checked on each candidate's
+    columns A, E and F gathered from the image; pixels below the threshold count as zero as they do
+    in the thresholded response.
+    """
+    h, w = response.shape
+    axis, reverse = _SCAN[edge]
+    # scan geometry: "across" runs along the scan (column A's direction), "along" from column to column
+    n_across, n_along = (h, w) if axis == 0 else (w, h)
+    s_across, s_along = (w, 1) if axis == 0 else (1, w)
+    x, y = candidates[:, 0], candidates[:, 1]
+    across, along = (y, x) if axis == 0 else (x, y)
+    flat_img = response.ravel()
+    flat = y * w + x
+    value = flat_img[flat]
+    offsets = np.arange(-testheight, testheight + 1)
+    steps = offsets * s_across
+
+    def window(centre: npt.NDArray[np.intp], pos: npt.NDArray[np.intp]) -> Float32Image:
+        """The response over column-A-shaped windows about flat indices ``centre`` (across position
+        ``pos``). A window position outside the image repeats the window's centre pixel instead:
+        a duplicate changes neither the window's maximum nor whether any value passes the threshold,
+        as the zero of the cut-off column does not."""
+        idx = centre[:, None] + steps[None, :]
+        near = (pos < testheight) | (pos >= n_across - testheight)
+        if near.any():
+            r = np.flatnonzero(near)
+            k = pos[r, None] + offsets[None, :]
+            idx[r] = np.where((k >= 0) & (k < n_across), idx[r], centre[r, None])
+        return flat_img[idx]
+
+    # in the edge's polarity (sign * response); the thresholded response is that above the level, else 0
+    # rule 2: C is the maximum of column A (ties allowed). Values below the threshold are below C's.
+    a_win = window(flat, across)
+    keep = a_win.max(axis=1) <= value if sign > 0 else a_win.min(axis=1) >= value
+    # rule 3: columns E and F, TESTWIDTH before and after C, each hold a value above the threshold
+    keep &= (along >= testwidth) & (along < n_along - testwidth)
+    if keep.any():
+        sel = np.flatnonzero(keep)
+        f, a = flat[sel], across[sel]
+        for side in (f - testwidth * s_along, f + testwidth * s_along):
+            win = window(side, a)
+            keep[sel] &= win.max(axis=1) > level if sign > 0 else win.min(axis=1) < -level
+    view_col = along[keep]
+    view_row = n_across - 1 - across[keep] if reverse else across[keep]
+    pts = scan_columns(view_col, view_row, (n_across, n_along), skip=skip, backoff=backoff)
     return view_to_image(pts, edge, (h, w))

@@ -134,7 +134,7 @@ def test_refusals_use_the_controllers_texts():
     arm.homed = False
     with pytest.raises(ArmError, match="005 Not homed or not calibrated"):
         arm.move_joint(1, 1.0)
-    assert arm.motion_log == []
+    assert list(arm.motion_log) == []
 
 
 def test_stop_freezes_the_arm_midway():
@@ -165,6 +165,22 @@ def test_the_shell_reports_the_interpolated_setpoint_while_moving():
     assert outcome.is_motion
     clock.t += outcome.motion_s / 2
     w0 = shell.execute("w0").lines
-    assert w0[4].split()[1] == "+15.000"
-    assert shell.execute("joint 1").lines == ["joint: usage: joint <axis> <degrees>"]
+    assert w0[7].split()[1] == "+15.000"
+    assert [a for a in shell.execute("armstat").lines if a.startswith(" 1 ")] == [
+        " 1        N       N       N       Y"
+    ]
+    assert shell.execute("joint 1").lines == [
+        "Invalid command line arguments.",
+        "Usage: joint joint distance",
+    ]
     assert shell.execute("").lines == []
+
+
+def test_the_motion_log_keeps_the_last_entries_only():
+    clock = Clock()
+    arm = make_arm(clock, log_limit=3)
+    for _ in range(5):
+        arm.move_joint(1, 1.0)
+        clock.t += 10.0
+    assert len(arm.motion_log) == 3
+    assert [m.end_deg[0] for m in arm.motion_log] == [3.0, 4.0, 5.0]

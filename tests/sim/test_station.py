@@ -20,7 +20,7 @@ PERFECT = WorldSpec(table=TableImperfections(skew_deg=0.0, resolution_in=0.0, ba
 @pytest.fixture
 def station() -> Iterator[SimStation]:
     with SimStation(PERFECT, repeat_sigma_deg=0.0) as s:
-        s.camera.open()
+        s.camera.connect()
         yield s
 
 
@@ -32,6 +32,7 @@ def test_a_joint_move_through_the_driver_moves_the_image_as_the_kinematics_predi
     station: SimStation,
 ) -> None:
     robot = open_robot(station.port)
+    robot.connect()
     try:
         before = centre(station)
         np.testing.assert_allclose(before, [319.5, 239.5], atol=0.02)

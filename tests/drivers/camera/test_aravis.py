@@ -41,7 +41,7 @@ def aravis() -> Any:
 @pytest.fixture
 def fake(aravis: Any) -> Iterator[AravisCamera]:
     cam = AravisCamera("Fake_1", roi=Roi(0, 0, 64, 48), frame_rate_hz=100.0)
-    cam.open()
+    cam.connect()
     yield cam
     cam.close()
 
@@ -73,13 +73,13 @@ def test_a_second_client_of_a_gige_camera_is_told_it_is_busy(gv_sim_pid: int) ->
     with AravisCamera(ADDRESS, roi=Roi(0, 0, 32, 16)):
         second = AravisCamera(ADDRESS)
         with pytest.raises(DeviceBusyError, match="another application controls this camera"):
-            second.open()  # Aravis tries to take control for about 2.5 s before giving up
+            second.connect()  # Aravis tries to take control for about 2.5 s before giving up
         assert second.status().connected is False
 
 
 def test_an_unknown_camera_is_named_with_what_was_seen(aravis: Any) -> None:
     with pytest.raises(DeviceConnectionError, match=r"cannot open GenICam camera no-such-camera.*seen now"):
-        AravisCamera("no-such-camera").open()
+        AravisCamera("no-such-camera").connect()
 
 
 def test_offers_exposure_gain_roi_and_frame_rate(fake: AravisCamera) -> None:
@@ -173,7 +173,7 @@ def test_rejects_an_unsupported_pixel_format_or_pool() -> None:
 
 def test_a_forgotten_camera_is_released_stream_first(aravis: Any, caplog: pytest.LogCaptureFixture) -> None:
     cam = AravisCamera("Fake_1", roi=Roi(0, 0, 32, 16), frame_rate_hz=100.0)
-    cam.open()
+    cam.connect()
     cam.grab()
     del cam
     gc.collect()

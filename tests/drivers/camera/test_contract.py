@@ -140,7 +140,7 @@ def rig(request: pytest.FixtureRequest) -> Iterator[Rig]:
 @pytest.fixture
 def camera(rig: Rig) -> Camera:
     cam = rig.camera()
-    cam.open()
+    cam.connect()
     return cam
 
 
@@ -155,7 +155,7 @@ def test_grab_gives_a_2d_image_of_the_set_size_and_format(
     if pixel_format not in rig.pixel_formats:
         pytest.skip(f"this camera has no {pixel_format}")
     cam = rig.camera(pixel_format)
-    cam.open()
+    cam.connect()
     frame = cam.grab()
     status = cam.status()
     assert frame.image.ndim == 2
@@ -209,7 +209,7 @@ def test_grab_on_a_closed_camera_says_to_open_it(rig: Rig) -> None:
     cam = rig.camera()
     with pytest.raises(DeviceConnectionError, match="not open"):
         cam.grab()
-    cam.open()
+    cam.connect()
     cam.close()
     with pytest.raises(DeviceConnectionError, match="not open"):
         cam.grab()
@@ -217,8 +217,8 @@ def test_grab_on_a_closed_camera_says_to_open_it(rig: Rig) -> None:
 
 def test_open_twice_and_close_twice_are_harmless(rig: Rig) -> None:
     cam = rig.camera()
-    cam.open()
-    cam.open()
+    cam.connect()
+    cam.connect()
     cam.close()
     cam.close()
     assert cam.status().connected is False
@@ -226,10 +226,10 @@ def test_open_twice_and_close_twice_are_harmless(rig: Rig) -> None:
 
 def test_a_closed_camera_opens_again(rig: Rig) -> None:
     cam = rig.camera()
-    cam.open()
+    cam.connect()
     first = cam.grab()
     cam.close()
-    cam.open()
+    cam.connect()
     assert cam.status().connected is True
     assert cam.grab().frame_id > first.frame_id
 

@@ -56,7 +56,7 @@ def device() -> Device:
 @pytest.fixture
 def camera(device: Device) -> Iterator[V4L2Camera]:
     cam = device.camera()
-    cam.open()
+    cam.connect()
     yield cam
     cam.close()
 
@@ -69,14 +69,14 @@ def test_a_missing_device_path_says_what_to_check(tmp_path: Path) -> None:
     cam = V4L2Camera(str(missing))  # the default (OpenCV) capture
     expected = rf"no V4L2 device at {missing}: .*v4l2-ctl --list-devices"
     with pytest.raises(DeviceConnectionError, match=expected):
-        cam.open()
+        cam.connect()
     assert cam.status().connected is False
 
 
 def test_a_missing_index_names_its_device_path() -> None:
     unopened = Device(opened=False)
     with pytest.raises(DeviceConnectionError, match="no V4L2 device at /dev/video57"):
-        unopened.camera(57).open()
+        unopened.camera(57).connect()
     assert unopened.opened_with == [57]
     assert unopened.capture.released
     assert device_path(57) == "/dev/video57"
@@ -90,7 +90,7 @@ def test_a_path_that_is_not_a_video_device_is_named(tmp_path: Path, kind: str) -
     else:
         path = Path("/dev/null")
     with pytest.raises(DeviceConnectionError, match="is not a V4L2 video device"):
-        Device(opened=False).camera(str(path)).open()
+        Device(opened=False).camera(str(path)).connect()
 
 
 def test_a_video_device_that_does_not_open_is_reported_busy(tmp_path: Path) -> None:
@@ -101,19 +101,19 @@ def test_a_video_device_that_does_not_open_is_reported_busy(tmp_path: Path) -> N
         pytest.skip("making a device node needs root (CAP_MKNOD); CI runs as root")
     expected = rf"another program probably holds it \(fuser -v {node}\)"
     with pytest.raises(DeviceBusyError, match=expected):
-        Device(opened=False).camera(str(node)).open()
+        Device(opened=False).camera(str(node)).connect()
 
 
 def test_an_unsupported_pixel_format_is_refused_and_the_device_released() -> None:
     grey_only = Device(fourccs=("GREY",))
     with pytest.raises(NotSupportedError, match=r"does not deliver Mono16 \(Y16\).*--list-formats-ext"):
-        grey_only.camera(pixel_format="Mono16").open()
+        grey_only.camera(pixel_format="Mono16").connect()
     assert grey_only.capture.released
 
 
 def test_an_unsupported_size_is_refused(device: Device) -> None:
     with pytest.raises(NotSupportedError, match="gives 64x48, not the 640x480 asked for"):
-        device.camera(width=640, height=480).open()
+        device.camera(width=640, height=480).connect()
     assert device.capture.released
 
 
@@ -125,7 +125,7 @@ def test_a_supported_size_is_set(device: Device) -> None:
 def test_mono16_needs_raw_mode(device: Device) -> None:
     device.capture.refuse.add(cv2.CAP_PROP_CONVERT_RGB)
     with pytest.raises(NotSupportedError, match=r"cut Mono16 to 8 bits \(raw mode refused\)"):
-        device.camera(pixel_format="Mono16").open()
+        device.camera(pixel_format="Mono16").connect()
 
 
 def test_open_requests_format_raw_mode_and_few_buffers(device: Device) -> None:

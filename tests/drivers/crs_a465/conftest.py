@@ -1,4 +1,7 @@
-"""Fixtures: a robot on a scripted port (exact exchanges), and controller twins on real ptys."""
+"""Fixtures: controller twins on real ptys (both motion modes), and drivers connected to them.
+
+Scripted exchanges use ``fakes.scripted_robot`` (a context manager: the verdict is in the test body).
+"""
 
 from __future__ import annotations
 
@@ -7,30 +10,22 @@ from typing import Any
 
 import pytest
 
-from drivers.crs_a465 import CrsA465, LinkSettings, SafetyLimits, ShellProfile
+from drivers.crs_a465 import CrsA465, LinkSettings, MotionSettings, ShellProfile
 from sim.controller import ControllerTwin
-from tests.drivers.crs_a465.fakes import Exchange, ScriptedPort
 
 # Short timeouts: a dropped reply costs a fraction of a second, not the real 3 s.
-FAST_LINK = LinkSettings(reply_timeout_s=0.3, motion_timeout_s=0.5, home_timeout_s=0.5, resync_quiet_s=0.02)
+FAST_LINK = LinkSettings(reply_timeout_s=0.3, home_timeout_s=2.0, resync_quiet_s=0.02)
+# The twin runs 100x faster than real: poll often, short margins.
+TWIN_MOTION = MotionSettings(deadline_margin_s=2.0, stall_timeout_s=1.0, poll_interval_s=0.005)
+
+MODES = ("firmware", "blocking")
+"""The twin's two motion modes: the firmware's (prompt at once, the arm moves on) and the older blocking."""
 
 
-@pytest.fixture
-def scripted() -> Iterator[Callable[..., tuple[CrsA465, ScriptedPort]]]:
-    """``scripted(exchanges, **robot_options)`` -> (robot, port); every port must be done at teardown."""
-    ports: list[ScriptedPort] = []
-
-    def make(exchanges: list[Exchange], **options: Any) -> tuple[CrsA465, ScriptedPort]:
-        port = ScriptedPort(exchanges)
-        ports.append(port)
-        options.setdefault("link", FAST_LINK)
-        options.setdefault("shell", ShellProfile.system())
-        options.setdefault("safety", SafetyLimits())
-        return CrsA465(port, **options), port
-
-    yield make
-    for port in ports:
-        port.assert_done()
+@pytest.fixture(params=MODES)
+def mode(request: pytest.FixtureRequest) -> str:
+    """Run a contract test once per motion mode of the twin."""
+    return str(request.param)
 
 
 @pytest.fixture
@@ -57,6 +52,7 @@ def robot_on() -> Iterator[Callable[..., CrsA465]]:
 
     def make(twin: ControllerTwin, **options: Any) -> CrsA465:
         options.setdefault("link", FAST_LINK)
+        options.setdefault("motion", TWIN_MOTION)
         if twin.settings.shell == "application":
             options.setdefault("shell", ShellProfile.application(twin.settings.app_name))
         robot = CrsA465(twin.port, **options)

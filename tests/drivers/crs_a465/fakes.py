@@ -10,10 +10,14 @@ answers unread.
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import Any
 
 import serial
+
+from drivers.crs_a465 import CrsA465, LinkSettings, MotionSettings, SafetyLimits, ShellProfile
 
 PROMPT = "$ "
 
@@ -112,18 +116,59 @@ class ScriptedPort(serial.SerialBase):
         assert not self._outgoing, f"answer never read: {bytes(self._outgoing)!r}"
 
 
+@contextmanager
+def scripted_robot(exchanges: Iterable[Exchange], **options: Any) -> Iterator[tuple[CrsA465, ScriptedPort]]:
+    """``with scripted_robot([...]) as (robot, port):`` a driver on a scripted port.
+
+    On a clean exit the block asserts that every scripted exchange happened and every answer was read:
+    the verdict is in the test body, not in a fixture's teardown.
+    """
+    port = ScriptedPort(exchanges)
+    options.setdefault("link", LinkSettings(reply_timeout_s=0.3, home_timeout_s=0.5, resync_quiet_s=0.02))
+    options.setdefault("shell", ShellProfile.system())
+    options.setdefault("safety", SafetyLimits())
+    options.setdefault("motion", FAST_MOTION)
+    robot = CrsA465(port, **options)
+    yield robot, port
+    port.assert_done()
+
+
 # ------------------------------------------------------------------ reply texts of the dialect
 
 AXES = "          Axis 1/7   Axis 2/8     Axis 3     Axis 4     Axis 5     Axis 6"
 WORLD_AXES = "          X/TrackX   Y/TrackY          Z      Z-Rot      Y-Rot      X-Rot"
 WORLD_UNITS = "WORLD         (mm)       (mm)       (mm)      (deg)      (deg)      (deg)"
 COUNTS = (400000 / 360,) * 3 + (200000 / 360,) * 3
+WORLD = (330.0, 0.0, 559.0, -180.0, 0.0, 180.0)
 
 
-def table(
-    kind: str, joints: Iterable[float], world: Iterable[float] = (330.0, 0.0, 559.0, -180.0, 0.0, 180.0)
-) -> list[str]:
-    """A ``w0``/``w2`` reply (``kind`` ``Commanded`` or ``Actual``) in the doc's format."""
+def _row(label: str, values: Iterable[str]) -> str:
+    return f"{label:<8}" + " ".join(f"{v:>10}" for v in values)
+
+
+def table(kind: str, joints: Iterable[float], world: Iterable[float] = WORLD) -> list[str]:
+    """A ``w0``/``w2`` reply (``kind`` ``Commanded`` or ``Actual``) in the firmware's layout [F]."""
+    q = list(joints)
+    pulses = [round(v * c) for v, c in zip(q, COUNTS, strict=True)]
+    return [
+        f"{kind} Position :",
+        "",
+        AXES,
+        _row("PULSES", (f"{p:+d}" for p in pulses)),
+        _row("", ["+0", "+0"]),
+        "",
+        AXES,
+        _row("JOINTS", (f"{v:+.3f}" for v in q)),
+        _row("", ["+0.000", "+0.000"]),
+        "",
+        WORLD_AXES,
+        _row("WORLD", (f"{v:+.3f}" for v in world)),
+        _row("", ["+0.000", "+0.000"]),
+    ]
+
+
+def application_table(kind: str, joints: Iterable[float], world: Iterable[float] = WORLD) -> list[str]:
+    """The application shell's layout [A: no public text of it; a units row, values below]."""
     q = list(joints)
     pulses = [round(v * c) for v, c in zip(q, COUNTS, strict=True)]
     return [
@@ -150,11 +195,57 @@ def w2(joints: Iterable[float] = READY, **kw: str) -> Exchange:
     return say("w2", *table("Actual", joints), **kw)
 
 
+def arrived(joints: Iterable[float], polls: int = 2, **kw: str) -> list[Exchange]:
+    """The polls after a motion that find the arm at ``joints`` (w0 at target, w2 still over two polls)."""
+    q = list(joints)
+    return [e for _ in range(polls) for e in (w0(q, **kw), w2(q, **kw))]
+
+
 def speed_report(percent: int = 50, **kw: str) -> Exchange:
     return say("speed", f"Current Speed: {percent}% of max.", **kw)
 
 
+def armstat_lines(
+    *, power: bool = True, homing: str = "Robot is calibrated and homed", moving: Iterable[int] = ()
+) -> list[str]:
+    """The firmware's armstat report [F]; ``moving`` axes show done N."""
+    busy = set(moving)
+    return [
+        "",
+        "Robot arm is of type A465",
+        f"{'Arm power is ' + ('ON' if power else 'OFF'):<21}{homing}",
+        "Units are Metric     Online is OFF",
+        "Physical stance: free free free",
+        "",
+        "",
+        "Current Tool Transform is: ",
+        "tx=0.00000, ty=0.00000, tz=0.00000, yaw=0.00000, pitch=0.00000, roll=0.00000",
+        "",
+        "Current Base Transform is: ",
+        "wx=0.00000, wy=0.00000, wz=0.00000, xrot=0.00000, yrot=0.00000, zrot=0.00000",
+        "",
+        "Axis    locked   done   limped   homed",
+        *[f"{a:>2}        N       {'N' if a in busy else 'Y'}       N       Y" for a in range(1, 7)],
+        "",
+    ]
+
+
+def armstat(**kw: Any) -> Exchange:
+    prompt = kw.pop("prompt", PROMPT)
+    return say("armstat", *armstat_lines(**kw), prompt=prompt)
+
+
 def connect_exchanges(joints: Iterable[float] = READY, *, prompt: str = PROMPT) -> list[Exchange]:
-    """What ``connect()`` says on the system shell: an empty line, speed, w2, w0."""
+    """What ``connect()`` says: an empty line, speed, armstat, w2, w0."""
     q = list(joints)
-    return [say("", prompt=prompt), speed_report(prompt=prompt), w2(q, prompt=prompt), w0(q, prompt=prompt)]
+    return [
+        say("", prompt=prompt),
+        speed_report(prompt=prompt),
+        armstat(prompt=prompt),
+        w2(q, prompt=prompt),
+        w0(q, prompt=prompt),
+    ]
+
+
+FAST_MOTION = MotionSettings(deadline_margin_s=1.0, stall_timeout_s=0.5, poll_interval_s=0.0)
+"""Scripted ports answer at once: no pause between polls, short deadlines."""

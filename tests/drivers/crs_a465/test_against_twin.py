@@ -1,4 +1,9 @@
-"""Conformance: the real driver against the controller twin over a real pseudo-terminal."""
+"""Conformance: the real driver against the controller twin over a real pseudo-terminal.
+
+One contract suite, run against both motion modes of the twin (``mode``): the firmware's (the prompt
+comes back at once while the arm moves on) and the older blocking one. Whatever the mode, a motion
+method returns only once the arm has arrived.
+"""
 
 from __future__ import annotations
 
@@ -13,34 +18,39 @@ from drivers.crs_a465 import (
     AxisLimpError,
     CrsA465,
     JointLimitError,
-    LinkSettings,
     NotHomedError,
     SafetyLimits,
+    ServoError,
     ShellProfile,
 )
+from sim.controller import ControllerTwin
 from station import config
-from station.devices import MotionStoppedError, Robot
+from station.devices import DeviceBusyError, MotionStoppedError, Robot
 from station.kinematics import Kinematics, world_row
-from tests.drivers.crs_a465.conftest import FAST_LINK
+from tests.drivers.crs_a465.conftest import FAST_LINK, TWIN_MOTION
 from tests.drivers.crs_a465.fakes import READY
 
 AWAY = (5.0, -3.0, 85.0, 2.0, 88.0, -4.0)
 
 
-def test_the_driver_is_a_robot(make_twin, robot_on):
-    assert isinstance(robot_on(make_twin()), Robot)
+def twin_in(make_twin, mode: str, **settings) -> ControllerTwin:
+    return make_twin(motion_blocks=mode == "blocking", **settings)
 
 
-def test_connect_reads_the_twins_state(make_twin, robot_on):
-    robot = robot_on(make_twin(speed_pct=35))
+def test_the_driver_is_a_robot(make_twin, robot_on, mode):
+    assert isinstance(robot_on(twin_in(make_twin, mode)), Robot)
+
+
+def test_connect_reads_the_twins_state(make_twin, robot_on, mode):
+    robot = robot_on(twin_in(make_twin, mode, speed_pct=35))
     assert robot.last_status is not None
     assert robot.last_status.speed_pct == 35.0
     assert robot.last_position is not None
     assert robot.last_position.commanded_joints_deg == READY
 
 
-def test_where_reports_the_twins_world_row_of_the_attained_joints(make_twin, robot_on):
-    robot = robot_on(make_twin())
+def test_where_reports_the_twins_world_row_of_the_attained_joints(make_twin, robot_on, mode):
+    robot = robot_on(twin_in(make_twin, mode))
     robot.move_joints(AWAY)
     p = robot.where()
     assert p.world_mm_deg is not None
@@ -48,8 +58,8 @@ def test_where_reports_the_twins_world_row_of_the_attained_joints(make_twin, rob
     assert_allclose(p.world_mm_deg, world_row(Kinematics().flange(p.joints_deg)), atol=0.01)
 
 
-def test_move_joints_reaches_the_target_within_the_repeatability(make_twin, robot_on):
-    twin = make_twin(repeat_sigma_deg=0.002)
+def test_move_joints_reaches_the_target_within_the_repeatability(make_twin, robot_on, mode):
+    twin = twin_in(make_twin, mode, repeat_sigma_deg=0.002)
     robot = robot_on(twin)
     robot.move_joints(AWAY)
     p = robot.where()
@@ -58,8 +68,10 @@ def test_move_joints_reaches_the_target_within_the_repeatability(make_twin, robo
     assert [m.kind for m in twin.motion_log] == [f"joint {i}" for i in range(1, 7)]
 
 
-def test_repeated_returns_scatter_and_show_the_systematic_error(make_twin, robot_on):
-    twin = make_twin(repeat_sigma_deg=0.003, systematic_deg=(0.01, 0.0, 0.0, 0.0, 0.0, 0.0), seed=4)
+def test_repeated_returns_scatter_and_show_the_systematic_error(make_twin, robot_on, mode):
+    twin = twin_in(
+        make_twin, mode, repeat_sigma_deg=0.003, systematic_deg=(0.01, 0.0, 0.0, 0.0, 0.0, 0.0), seed=4
+    )
     robot = robot_on(twin, safety=SafetyLimits(max_step_deg=10.0))
     attained = []
     for _ in range(12):
@@ -72,8 +84,8 @@ def test_repeated_returns_scatter_and_show_the_systematic_error(make_twin, robot
     assert_allclose(a[:, 1:], np.tile(READY[1:], (12, 1)))  # joints that never moved keep their place
 
 
-def test_speed_home_and_ready(make_twin, robot_on):
-    twin = make_twin()
+def test_speed_home_and_ready(make_twin, robot_on, mode):
+    twin = twin_in(make_twin, mode)
     robot = robot_on(twin)
     robot.set_speed(80)
     assert robot.status().speed_pct == 80.0
@@ -84,41 +96,41 @@ def test_speed_home_and_ready(make_twin, robot_on):
     assert [m.kind for m in twin.motion_log] == ["home", "ready"]
 
 
-def test_arm_power_off_is_reported_by_the_controller(make_twin, robot_on):
-    twin = make_twin()
+def test_arm_power_off_is_reported_by_the_controller(make_twin, robot_on, mode):
+    twin = twin_in(make_twin, mode)
     robot = robot_on(twin)
     twin.set_power(False)
-    with pytest.raises(ArmPowerOffError, match="007 Arm power is OFF"):
+    with pytest.raises(ArmPowerOffError, match="joint: Arm power is OFF"):
         robot.move_joint(1, 1.0)
-    assert robot.status().last_error == "joint: 007 Arm power is OFF"
+    assert robot.status().last_error == "joint: Arm power is OFF"
 
 
-def test_not_homed_then_homed(make_twin, robot_on):
-    robot = robot_on(make_twin(homed=False))
+def test_not_homed_then_homed(make_twin, robot_on, mode):
+    robot = robot_on(twin_in(make_twin, mode, homed=False))
     with pytest.raises(NotHomedError):
         robot.ready()
     robot.home()
     robot.ready()
 
 
-def test_the_controllers_own_limit_error_comes_through(make_twin, robot_on):
+def test_the_controllers_own_limit_error_comes_through(make_twin, robot_on, mode):
     narrow = ((-10.0, 10.0), (-90, 90), (-110, 110), (-180, 180), (-105, 105), (-180, 180))
-    robot = robot_on(make_twin(joint_limits_deg=narrow))
+    robot = robot_on(twin_in(make_twin, mode, joint_limits_deg=narrow))
     with pytest.raises(JointLimitError) as info:
         robot.move_joint(1, 15.0)
     assert info.value.axis == 1
 
 
-def test_a_limp_axis_refuses_to_move(make_twin, robot_on):
-    twin = make_twin()
+def test_a_limp_axis_refuses_to_move(make_twin, robot_on, mode):
+    twin = twin_in(make_twin, mode)
     robot = robot_on(twin)
     twin.arm.limp.add(4)
     with pytest.raises(AxisLimpError):
         robot.move_joint(4, 1.0)
 
 
-def test_application_shell_reports_power_and_homing(make_twin, robot_on):
-    twin = make_twin(shell="application", app_name="cal")
+def test_application_shell_reports_power_and_homing(make_twin, robot_on, mode):
+    twin = twin_in(make_twin, mode, shell="application", app_name="cal")
     robot = robot_on(twin)
     assert robot.shell == ShellProfile.application("cal")
     status = robot.status()
@@ -129,44 +141,116 @@ def test_application_shell_reports_power_and_homing(make_twin, robot_on):
         robot.move_joint(2, 1.0)
 
 
-def test_non_blocking_motion_waits_until_settled(make_twin, robot_on):
-    twin = make_twin(motion_blocks=False, time_scale=20.0, repeat_sigma_deg=0.0)
-    robot = robot_on(twin, shell=ShellProfile.system(motion_blocks=False))
+def test_a_motion_returns_only_once_the_arm_has_arrived(make_twin, robot_on, mode):
+    twin = twin_in(make_twin, mode, time_scale=20.0, repeat_sigma_deg=0.0)
+    robot = robot_on(twin)
     robot.move_joints((20.0, 0.0, 90.0, 0.0, 90.0, 0.0))
-    robot.wait_settled(timeout_s=10.0)
     assert not twin.arm.moving()
     assert robot.where().joints_deg == (20.0, 0.0, 90.0, 0.0, 90.0, 0.0)
+    robot.move_joint(2, -7.5)
+    assert not twin.arm.moving()
+    assert robot.last_arrival is not None
+    assert robot.last_arrival.target_deg == (20.0, -7.5, 90.0, 0.0, 90.0, 0.0)
+    robot.ready()
+    assert not twin.arm.moving()
+    assert robot.where().commanded_joints_deg == READY
 
 
-def test_stop_interrupts_a_motion_in_progress(make_twin, robot_on):
-    twin = make_twin(time_scale=1.0, speed_pct=5)  # 30 deg at 9 deg/s: several seconds
-    robot = robot_on(twin, link=LinkSettings(motion_timeout_s=30.0, resync_quiet_s=0.02))
+def test_status_reports_motion_from_armstats_done_column(make_twin, robot_on, mode):
+    twin = twin_in(make_twin, mode, time_scale=1.0, speed_pct=5)
+    robot = robot_on(twin)
+    assert robot.status().moving is False
+    twin.arm.move_joint(1, 20.0)  # moved by someone else (the pendant)
+    assert robot.status().moving is True
+    twin.arm.stop()
+    assert robot.status().moving is False
+
+
+def test_power_off_is_a_state_reported_by_status(make_twin, robot_on, mode):
+    twin = twin_in(make_twin, mode)
+    robot = robot_on(twin)
+    twin.set_power(False)
+    status = robot.status()
+    assert (status.power, status.homed, status.calibrated, status.arm_type) == (False, True, True, "A465")
+    assert robot.identity().model == "A465"
+
+
+def _move_in_thread(robot: CrsA465, axis: int, delta: float) -> tuple[threading.Thread, list[BaseException]]:
     outcome: list[BaseException] = []
 
     def move() -> None:
         try:
-            robot.move_joint(1, 30.0)
+            robot.move_joint(axis, delta)
         except BaseException as exc:  # noqa: BLE001 - handed to the test thread
             outcome.append(exc)
 
     mover = threading.Thread(target=move)
     mover.start()
-    for _ in range(500):
-        if twin.arm.moving():
-            break
+    return mover, outcome
+
+
+def _wait_moving(twin: ControllerTwin) -> None:
+    """Until the arm is on its way (joint 1 past 1 deg), so that a stop lands mid-motion."""
+    for _ in range(1000):
+        if twin.arm.moving() and twin.arm.commanded()[0] > 1.0:
+            return
         threading.Event().wait(0.01)
+
+
+def test_stop_halts_a_motion_in_progress_and_latches(make_twin, robot_on, mode):
+    twin = twin_in(make_twin, mode, time_scale=1.0, speed_pct=5)  # 30 deg at 9 deg/s: several seconds
+    robot = robot_on(twin)
+    mover, outcome = _move_in_thread(robot, 1, 30.0)
+    _wait_moving(twin)
     robot.stop()
-    mover.join(timeout=10)
+    mover.join(timeout=20)
     assert not mover.is_alive()
     assert len(outcome) == 1
     assert isinstance(outcome[0], MotionStoppedError)
+    assert "clear_stop()" in str(outcome[0])
     assert twin.motion_log[-1].stopped
+    assert not twin.arm.moving()
     reached = robot.where().commanded_joints_deg[0]
     assert 0.0 < reached < 30.0
+    assert all(not any(ord(c) < 0x20 for c in line) for line in twin.received)  # no stray control byte
+    with pytest.raises(MotionStoppedError, match=r"clear_stop\(\)"):
+        robot.move_joint(1, 1.0)
+    robot.connect()  # connecting again does not release the latch
+    with pytest.raises(MotionStoppedError):
+        robot.move_joint(1, 1.0)
+    robot.clear_stop()
+    robot.move_joint(1, 1.0)
 
 
-def test_reconnecting_rereads_what_another_client_changed(make_twin, robot_on):
-    twin = make_twin()
+def test_a_stop_between_two_motions_is_not_lost(make_twin, robot_on, mode):
+    twin = twin_in(make_twin, mode)
+    robot = robot_on(twin)
+    robot.move_joint(1, 1.0)
+    robot.stop()
+    with pytest.raises(MotionStoppedError):
+        robot.move_joint(1, 1.0)
+    assert [m.kind for m in twin.motion_log] == ["joint 1"]
+
+
+def test_a_servo_error_during_the_motion_is_raised(make_twin, robot_on, mode):
+    twin = twin_in(make_twin, mode, time_scale=5.0)  # 20 deg in about 70 ms
+    robot = robot_on(twin)
+    twin.inject("servo@2:Excessive lag error on axis 1")  # w0, then the joint move
+    with pytest.raises(ServoError, match="Excessive lag error on axis 1"):
+        robot.move_joint(1, 20.0)
+    assert twin.motion_log[-1].stopped
+
+
+def test_the_port_is_opened_exclusively(make_twin, robot_on, mode):
+    twin = twin_in(make_twin, mode)
+    robot_on(twin)
+    second = CrsA465(twin.port, link=FAST_LINK, motion=TWIN_MOTION)
+    with pytest.raises(DeviceBusyError, match="in use"):
+        second.connect()
+
+
+def test_reconnecting_rereads_what_another_client_changed(make_twin, robot_on, mode):
+    twin = twin_in(make_twin, mode)
     first = robot_on(twin)
     first.close()
     second = robot_on(twin)
@@ -183,9 +267,18 @@ def test_reconnecting_rereads_what_another_client_changed(make_twin, robot_on):
 def test_robot_and_twin_are_built_through_the_device_registry():
     twin = config.build("controller", "sim", time_scale=100.0, seed=2)
     try:
-        robot = config.build("robot", "crs_a465", port=twin.port, link=FAST_LINK, safety={"max_step_deg": 10})
+        robot = config.build(
+            "robot",
+            "crs_a465",
+            port=twin.port,
+            link=FAST_LINK,
+            safety={"max_step_deg": 10},
+            motion=TWIN_MOTION,
+        )
         assert isinstance(robot, CrsA465)
+        assert not robot.is_connected  # the factory does not connect
         try:
+            robot.connect()
             assert robot.guard.limits.max_step_deg == 10
             robot.move_joint(6, 3.0)
             assert robot.where().commanded_joints_deg[5] == 3.0

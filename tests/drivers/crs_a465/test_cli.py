@@ -35,15 +35,17 @@ def test_sim_where_prints_the_position_as_json(capsys):
     }
 
 
-def test_sim_status_reports_unknowns_as_null(capsys):
+def test_sim_status_reports_armstat_beside_the_existing_keys(capsys):
     code, out, _ = run(capsys, "--sim", "--json", "status")
     assert code == 0
     assert json.loads(out) == {
-        "power": None,
-        "homed": None,
-        "moving": None,
+        "power": True,
+        "homed": True,
+        "moving": False,
         "speed_pct": 50.0,
         "last_error": None,
+        "calibrated": True,
+        "arm_type": "A465",
     }
 
 
@@ -72,7 +74,7 @@ def test_a_controller_error_exits_non_zero_with_its_message(capsys, make_twin):
     code, out, err = run(capsys, "--port", twin.port, "joint", "1", "5")
     assert code == 1
     assert out == ""
-    assert "007 Arm power is OFF" in err
+    assert "joint: Arm power is OFF" in err
 
 
 def test_a_rejected_motion_exits_non_zero_and_sends_nothing(capsys, make_twin):
@@ -89,6 +91,38 @@ def test_a_missing_port_exits_non_zero(capsys, tmp_path):
     assert "cannot open" in err
 
 
+def test_joint_returns_only_once_the_arm_has_arrived_on_a_firmware_like_controller(capsys, make_twin):
+    twin = make_twin(time_scale=1.0, repeat_sigma_deg=0.0)  # the prompt comes back at once [F]
+    assert not twin.settings.motion_blocks
+    code, out, err = run(capsys, "--port", twin.port, "--json", "joint", "2", "5")
+    assert (code, err) == (0, "")
+    assert not twin.arm.moving()
+    data = json.loads(out)
+    assert data["joints_deg"] == [0.0, 5.0, 90.0, 0.0, 90.0, 0.0]
+    assert data["commanded_joints_deg"] == [0.0, 5.0, 90.0, 0.0, 90.0, 0.0]
+
+
+@pytest.mark.parametrize(
+    ("option", "value", "message"),
+    [
+        ("--timeout", "-1", "--timeout: input should be greater than 0 (got -1.0)"),
+        ("--timeout", "soon", "--timeout: expected a number, got 'soon'"),
+        ("--baud", "fast", "--baud: expected a number, got 'fast'"),
+        ("--baud", "0", "--baud: input should be greater than 0 (got 0)"),
+        ("--max-step", "0", "--max-step: input should be greater than 0 (got 0.0)"),
+        ("--stall-timeout", "nan", "--stall-timeout: expected a finite number, got 'nan'"),
+    ],
+)
+def test_a_bad_option_value_exits_2_with_one_line_before_connecting(
+    capsys, make_twin, option, value, message
+):
+    twin = make_twin()
+    code, out, err = run(capsys, "--port", twin.port, option, value, "where")
+    assert (code, out) == (2, "")
+    assert err == f"station robot: {message}\n"
+    assert twin.received == []  # nothing was opened or sent
+
+
 def test_usage_errors_exit_2(capsys):
     with pytest.raises(SystemExit) as info:
         main(["robot", "--sim", "joint", "9", "1"])
@@ -101,7 +135,10 @@ def test_usage_errors_exit_2(capsys):
 
 
 class DocEmulator:
-    """A minimal controller written from the protocol doc alone (its table spacing, not the twin's)."""
+    """A minimal controller written from the firmware's formats alone (not the twin's code).
+
+    Its motions are instantaneous; it prints the tables with single spaces between fields.
+    """
 
     def __init__(self) -> None:
         self.joints = [0.0, 0.0, 90.0, 0.0, 90.0, 0.0]
@@ -114,16 +151,21 @@ class DocEmulator:
 
     def _table(self, kind: str) -> list[str]:
         q = self.joints
+        axes = "Axis 1/7 Axis 2/8 Axis 3 Axis 4 Axis 5 Axis 6"
         return [
             f"{kind} Position :",
-            "          Axis 1/7   Axis 2/8     Axis 3     Axis 4     Axis 5     Axis 6",
-            "PULSES  " + " ".join(f"{round(v * 1111.111):+9d}" for v in q),
-            "              +0         +0",
-            "JOINTS  " + " ".join(f"{v:+10.3f}" for v in q),
-            "              +0.000     +0.000",
-            "          X/TrackX   Y/TrackY          Z      Z-Rot      Y-Rot      X-Rot",
-            "WORLD         (mm)       (mm)       (mm)      (deg)      (deg)      (deg)",
-            "          +400.000     +0.000   +500.000     +0.000    +90.000     +0.000",
+            "",
+            axes,
+            "PULSES " + " ".join(f"{round(v * 1111.111):+d}" for v in q),
+            "+0 +0",
+            "",
+            axes,
+            "JOINTS " + " ".join(f"{v:+.3f}" for v in q),
+            "+0.000 +0.000",
+            "",
+            "X/TrackX Y/TrackY Z Z-Rot Y-Rot X-Rot",
+            "WORLD +400.000 +0.000 +500.000 +0.000 +90.000 +0.000",
+            "+0.000 +0.000",
         ]
 
     def _answer(self, line: str) -> list[str]:
@@ -132,6 +174,13 @@ class DocEmulator:
             return []
         if words == ["speed"]:
             return ["Current Speed: 50% of max."]
+        if words == ["armstat"]:
+            return [
+                "Robot arm is of type A465",
+                "Arm power is ON      Robot is calibrated and homed",
+                "Axis    locked   done   limped   homed",
+                *[f" {a}        N       Y       N       Y" for a in range(1, 7)],
+            ]
         if words == ["w0"]:
             return self._table("Commanded")
         if words == ["w2"]:
@@ -139,7 +188,7 @@ class DocEmulator:
         if words[0] == "joint" and len(words) == 3:
             self.joints[int(words[1]) - 1] += float(words[2])
             return []
-        return ["Unrecognized command."]
+        return [f"shell: {words[0]}: not found"]
 
     def _serve(self) -> None:
         line = b""

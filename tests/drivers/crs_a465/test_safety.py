@@ -8,7 +8,7 @@ import pytest
 from drivers.crs_a465 import MotionGuard, SafetyLimits
 from station.devices import MotionRejectedError
 from station.kinematics import Kinematics
-from tests.drivers.crs_a465.fakes import READY, connect_exchanges, w0
+from tests.drivers.crs_a465.fakes import READY, connect_exchanges, scripted_robot, w0
 
 MOTION_WORDS = ("joint", "ready", "home", "move", "motor")
 
@@ -97,37 +97,37 @@ def test_limits_and_keepout_settings_are_validated():
 # ------------------------------------------------------------------ nothing leaves the host
 
 
-def test_a_limit_failure_writes_nothing_at_all(scripted):
-    robot, port = scripted(connect_exchanges())
-    robot.connect()
-    sent = len(port.written)
-    with pytest.raises(MotionRejectedError):
-        robot.move_joints((0, 0, 90, 0, 90, 181))
-    with pytest.raises(MotionRejectedError):
-        robot.move_joint(7, 1.0)
-    assert len(port.written) == sent
+def test_a_limit_failure_writes_nothing_at_all():
+    with scripted_robot(connect_exchanges()) as (robot, port):
+        robot.connect()
+        sent = len(port.written)
+        with pytest.raises(MotionRejectedError):
+            robot.move_joints((0, 0, 90, 0, 90, 181))
+        with pytest.raises(MotionRejectedError):
+            robot.move_joint(7, 1.0)
+        assert len(port.written) == sent
 
 
-def test_a_step_or_keepout_failure_writes_only_the_position_query(scripted):
-    robot, port = scripted([*connect_exchanges(), w0(), w0(), w0()], safety=HIGH_TABLE)
-    robot.connect()
-    sent = len(port.written)
-    with pytest.raises(MotionRejectedError, match="maximum step"):
-        robot.move_joints((0, 0, 40, 0, 90, 0))
-    with pytest.raises(MotionRejectedError, match="camera"):
-        robot.move_joint(3, 10.0)
-    with pytest.raises(MotionRejectedError, match="camera"):
-        robot.move_joints((0, 0, 100, 0, 90, 0))
-    assert bytes(port.written[sent:]) == b"w0\r" * 3
+def test_a_step_or_keepout_failure_writes_only_the_position_query():
+    with scripted_robot([*connect_exchanges(), w0(), w0(), w0()], safety=HIGH_TABLE) as (robot, port):
+        robot.connect()
+        sent = len(port.written)
+        with pytest.raises(MotionRejectedError, match="maximum step"):
+            robot.move_joints((0, 0, 40, 0, 90, 0))
+        with pytest.raises(MotionRejectedError, match="camera"):
+            robot.move_joint(3, 10.0)
+        with pytest.raises(MotionRejectedError, match="camera"):
+            robot.move_joints((0, 0, 100, 0, 90, 0))
+        assert bytes(port.written[sent:]) == b"w0\r" * 3
 
 
-def test_ready_is_checked_against_the_keepout(scripted):
+def test_ready_is_checked_against_the_keepout():
     limits = SafetyLimits(table_z_mm=420.0)  # the ready pose's camera would be 39 mm above the table
-    robot, port = scripted([*connect_exchanges(), w0()], safety=limits)
-    robot.connect()
-    with pytest.raises(MotionRejectedError, match="camera"):
-        robot.ready()
-    assert not port.written.endswith(b"ready\r")
+    with scripted_robot([*connect_exchanges(), w0()], safety=limits) as (robot, port):
+        robot.connect()
+        with pytest.raises(MotionRejectedError, match="camera"):
+            robot.ready()
+        assert not port.written.endswith(b"ready\r")
 
 
 def test_random_moves_against_the_twin_never_send_an_unsafe_motion(make_twin, robot_on):

@@ -1,0 +1,148 @@
+"""Motion that outlives the prompt: expected durations, deadlines and the arrival test.
+
+``joint`` and ``ready`` give the prompt back at once while the arm still moves [F], so the driver
+decides arrival itself from what it polls. The arm has arrived when the commanded position (``w0``)
+equals the target within the controller's resolution and the actual position (``w2``) has not changed
+by more than one encoder count between two polls. The deadline of a move is its expected duration
+(trapezoidal profile, configurable joint speeds and accelerations, at the current speed setting)
+times ``deadline_factor`` plus ``deadline_margin_s``; a move fails earlier only when the position has
+not changed for ``stall_timeout_s`` while the target is not reached. The speeds and accelerations are
+public figures of another model of the arm [A]; the deadline's factor leaves room for them to be wrong.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from station.devices import JOINT_COUNT
+
+Six = tuple[float, float, float, float, float, float]
+
+
+class MotionSettings(BaseModel):
+    """How the driver waits for a motion: timing model, deadline, stall, polling and tolerances."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    max_speed_deg_s: Six = Field(
+        (180.0, 180.0, 180.0, 172.0, 172.0, 172.0), description="[A] joint speeds at 100 % speed"
+    )
+    accel_deg_s2: Six = Field(
+        (720.0, 720.0, 720.0, 1430.0, 1430.0, 1430.0), description="[A] joint accelerations (not scaled)"
+    )
+    counts_per_deg: Six = Field(
+        (400000 / 360,) * 3 + (200000 / 360,) * 3, description="[A] encoder counts per degree"
+    )
+    deadline_factor: float = Field(3.0, ge=1.0, description="deadline = expected duration x this + margin")
+    deadline_margin_s: float = Field(5.0, ge=0.0)
+    stall_timeout_s: float = Field(3.0, gt=0.0, description="no change this long, target not reached: fail")
+    poll_interval_s: float = Field(0.02, ge=0.0, description="pause between two polls of w0/w2")
+    resolution_deg: float = Field(0.002, gt=0.0, description="w0 equals the target within this (3 decimals)")
+    arrival_tolerance_deg: float = Field(
+        0.5, gt=0.0, description="|w2 - target| beyond this after arrival is an error (gross difference)"
+    )
+    pose_tolerance_deg: float = Field(
+        0.01, gt=0.0, description="ready/home: w0 further than this from the configured pose warns"
+    )
+    home_pose_deg: Six | None = Field((0.0,) * 6, description="[A] where home ends (None: not compared)")
+    point_of_control_wait_s: float = Field(
+        600.0, ge=0.0, description="extra time granted while the pendant holds the point of control"
+    )
+
+
+def trapezoid_time(distance: float, speed: float, accel: float) -> float:
+    """Duration (s) of a rest-to-rest trapezoidal (or triangular) move."""
+    if distance <= 0.0:
+        return 0.0
+    if distance >= speed * speed / accel:
+        return distance / speed + speed / accel
+    return 2.0 * math.sqrt(distance / accel)
+
+
+def expected_duration_s(
+    start_deg: Sequence[float], end_deg: Sequence[float], speed_pct: float, settings: MotionSettings
+) -> float:
+    """Expected duration of a synchronised joint move at ``speed_pct`` (the slowest joint's)."""
+    scale = max(1.0, min(100.0, speed_pct)) / 100.0
+    return max(
+        trapezoid_time(abs(b - a), v * scale, acc)
+        for a, b, v, acc in zip(
+            start_deg, end_deg, settings.max_speed_deg_s, settings.accel_deg_s2, strict=True
+        )
+    )
+
+
+def deadline_s(expected_s: float, settings: MotionSettings) -> float:
+    """The time a move may take: expected duration x factor + margin."""
+    return expected_s * settings.deadline_factor + settings.deadline_margin_s
+
+
+@dataclass
+class ArrivalTracker:
+    """Decides arrival, stall and gross error from successive polls of ``w0`` and ``w2`` (no I/O).
+
+    ``target`` ``None``: any still commanded position is accepted (``ready`` and ``home``, whose end
+    pose is an assumption); the caller compares it with the configured pose.
+    """
+
+    target: tuple[float, ...] | None
+    settings: MotionSettings
+    started_s: float
+    last_w2_pulses: tuple[int, ...] | None = None
+    last_w0: tuple[float, ...] | None = None
+    last_change_s: float = 0.0
+    polls: int = 0
+
+    def __post_init__(self) -> None:
+        self.last_change_s = self.started_s
+
+    def at_target(self, commanded: Sequence[float]) -> bool:
+        if self.target is None:
+            return False
+        return (
+            max(abs(c - t) for c, t in zip(commanded, self.target, strict=True))
+            <= self.settings.resolution_deg
+        )
+
+    def update(self, now_s: float, commanded: Sequence[float], actual_pulses: Sequence[int]) -> bool:
+        """Record one poll; True when the arm has arrived (see the module's rule)."""
+        self.polls += 1
+        w0 = tuple(commanded)
+        pulses = tuple(actual_pulses)
+        still = self.last_w2_pulses is not None and all(
+            abs(a - b) <= 1 for a, b in zip(pulses, self.last_w2_pulses, strict=True)
+        )
+        w0_still = self.last_w0 is not None and w0 == self.last_w0
+        if not (still and w0_still):
+            self.last_change_s = now_s
+        self.last_w2_pulses, self.last_w0 = pulses, w0
+        if not still:
+            return False
+        if self.target is None:
+            return w0_still
+        return self.at_target(w0)
+
+    def stalled(self, now_s: float) -> bool:
+        """Nothing changed for ``stall_timeout_s`` while the target is not reached."""
+        return now_s - self.last_change_s >= self.settings.stall_timeout_s
+
+
+def worst_axis(a: Sequence[float], b: Sequence[float]) -> tuple[int, float]:
+    """(axis 1-6, a - b) of the largest difference."""
+    diffs = [x - y for x, y in zip(a, b, strict=True)]
+    i = max(range(JOINT_COUNT), key=lambda k: abs(diffs[k]))
+    return i + 1, diffs[i]
+
+
+__all__ = [
+    "ArrivalTracker",
+    "MotionSettings",
+    "deadline_s",
+    "expected_duration_s",
+    "trapezoid_time",
+    "worst_axis",
+]

@@ -1,0 +1,231 @@
+"""``station run KIND`` and ``station run --resume ID``: one session, from the command line.
+
+``--param NAME=VALUE`` sets a plan parameter (the value parsed as JSON, else taken as a string);
+``--set NAME=VALUE`` a measurement parameter. With ``--json`` the last line on stdout is
+``{"id", "kind", "state", "results"}``. Exit 0 when the session succeeded, 1 for any other final state,
+2 for usage errors. Ctrl-C (or SIGTERM) aborts: the robot is stopped through its latched stop, the
+session is recorded as aborted with everything captured so far.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import sys
+import threading
+from collections.abc import Sequence
+from typing import Any
+
+from station.commands import SubParsers
+from station.config import ConfigurationError
+from station.devices import DeviceError
+from station.plans import PLAN_NAMES, PlanError
+from station.record import EventRow, RecordError, SessionLockError
+from station.runner import SessionError, SessionRunner
+from station.scale_calibration import ScaleCalibrationError
+from station.session import run_session
+from station.vision import parse_assignments
+
+
+def add_record_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--data", metavar="DIR", help="data directory (default: $STATION_DATA, else ./station-data)"
+    )
+    p.add_argument("--database", metavar="URL", help="SQLAlchemy URL of the record (default: SQLite in DIR)")
+
+
+def register(sub: SubParsers) -> None:
+    p = sub.add_parser(
+        "run",
+        help="run a session: validation, repeatability, sweep or reanalyse",
+        description="Run one session on the simulated station (--sim) or a configured one (--config), "
+        "record everything, and print its results. sweep and reanalyse need no station.",
+    )
+    p.add_argument("kind", nargs="?", choices=PLAN_NAMES, help="the session's plan")
+    p.add_argument("--resume", metavar="ID", help="continue an interrupted session after its last step")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--sim", action="store_true", help="the simulated station")
+    where.add_argument("--config", metavar="FILE", help="a station configuration (TOML)")
+    p.add_argument(
+        "--param",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="plan parameter, VALUE as JSON or a plain string (e.g. --param cycles=10, "
+        "--param 'sequences={\"S1\": [[...], [...]]}')",
+    )
+    p.add_argument(
+        "--set",
+        dest="assignments",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="measurement parameter (as in station measure)",
+    )
+    p.add_argument("-j", "--jobs", type=int, default=1, help="worker processes for sweep and reanalyse")
+    p.add_argument("--json", action="store_true", help="print the outcome as one JSON object (last line)")
+    p.add_argument("--report", action="store_true", help="write the session's report and print where")
+    add_record_options(p)
+    p.set_defaults(func=lambda args: run(p, args))
+
+
+def parse_params(parser: argparse.ArgumentParser, items: Sequence[str]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for item in items:
+        name, sep, text = item.partition("=")
+        if not sep or not name.strip():
+            parser.error(f"--param {item!r}: expected NAME=VALUE")
+        try:
+            value: Any = json.loads(text)
+        except json.JSONDecodeError:
+            value = text
+        out[name.strip()] = value
+    return out
+
+
+class _Progress:
+    """A progress bar on stderr when it is a terminal; one line per state change otherwise."""
+
+    def __init__(self) -> None:
+        self._bar: Any = None
+        self._tty = sys.stderr.isatty()
+
+    def __call__(self, event: EventRow) -> None:
+        if event.type == "state":
+            if self._bar is not None:
+                self._bar.set_postfix_str(event.data["state"])
+            else:
+                print(f"station run: {event.data['state']}", file=sys.stderr)
+        elif event.type == "step_finished" and self._tty:
+            p = event.data["progress"]
+            if self._bar is None:
+                from tqdm import tqdm
+
+                self._bar = tqdm(total=p["total"], file=sys.stderr, unit="step")
+            self._bar.n = p["done"]
+            self._bar.refresh()
+        elif event.type in ("error", "warning"):
+            print(f"station run: {event.type}: {event.data.get('message')}", file=sys.stderr)
+        elif event.type == "prompt_raised" and not self._tty:
+            print(f"station run: operator: {event.data['message']}", file=sys.stderr)
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+
+
+def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
+    if (args.kind is None) == (args.resume is None):
+        parser.error("give a session kind, or --resume ID (not both)")
+    if args.jobs < 1:
+        parser.error(f"--jobs must be at least 1, got {args.jobs}")
+    params = parse_params(parser, args.param)
+    try:
+        assignments = dict(parse_assignments(args.assignments))
+    except ValueError as exc:
+        parser.error(str(exc))
+    progress = _Progress()
+    runners: list[SessionRunner] = []
+    signals: dict[int, int] = {signal.SIGINT: 130, signal.SIGTERM: 143}
+    received: list[int] = []
+
+    def on_signal(signum: int, frame: object) -> None:
+        received.append(signum)
+        for r in runners:
+            r.abort(f"aborted by {signal.Signals(signum).name}")
+
+    outcome_box: list[Any] = []
+    error_box: list[BaseException] = []
+
+    def work() -> None:
+        try:
+            outcome_box.append(
+                run_session(
+                    args.kind,
+                    sim=args.sim,
+                    config=args.config,
+                    params=params,
+                    assignments=assignments,
+                    data=args.data,
+                    database=args.database,
+                    resume=args.resume,
+                    jobs=args.jobs,
+                    on_event=progress,
+                    on_runner=runners.append,
+                )
+            )
+        except BaseException as exc:  # noqa: BLE001 - handed to the main thread below
+            error_box.append(exc)
+
+    # The session runs in a worker thread; the main thread only waits, so that Ctrl-C's handler can
+    # call abort() (robot.stop() on the serial link) without interrupting the runner mid-exchange.
+    worker = threading.Thread(target=work, name="station-run")
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        previous = {s: signal.signal(s, on_signal) for s in signals}
+    try:
+        worker.start()
+        while worker.is_alive():
+            worker.join(0.2)
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+    if error_box:
+        progress.close()
+        failure = error_box[0]
+        if isinstance(failure, PlanError | ConfigurationError | ScaleCalibrationError):
+            print(f"station run: {failure}", file=sys.stderr)
+            return 2
+        if isinstance(failure, SessionLockError | SessionError | RecordError | DeviceError):
+            print(f"station run: {failure}", file=sys.stderr)
+            return signals[received[0]] if received else 1
+        raise failure
+    outcome = outcome_box[0]
+    progress.close()
+    if args.report:
+        from station.commands.sessions import write_session_report
+
+        try:
+            files = write_session_report(outcome.id, args.data, args.database)
+            print(f"report: {files.html}", file=sys.stderr if args.json else sys.stdout)
+        except (RecordError, OSError) as exc:
+            print(f"station run: the report could not be written: {exc}", file=sys.stderr)
+    if args.json:
+        print(json.dumps(outcome.to_json()))
+    else:
+        print(f"session {outcome.id} ({outcome.kind}): {outcome.state}")
+        if outcome.error:
+            print(f"  {outcome.error}")
+        print(summary(outcome.kind, outcome.results))
+    if received:
+        return signals[received[0]]
+    return 0 if outcome.state == "succeeded" else 1
+
+
+def summary(kind: str, results: dict[str, Any]) -> str:
+    """A few lines for the terminal; ``station report`` writes the full tables and figures."""
+    if not results:
+        return "  no results"
+    if kind == "reanalyse":
+        return summary(results.get("kind", ""), results.get(results.get("kind", ""), {}))
+    if kind == "validation":
+        return (
+            f"  raw (rigid) error mean {results['mean_um']:.3f} um, max {results['max_um']:.3f} um; "
+            f"parallelogram mean {results['parallelogram_mean_um']:.3f} um, "
+            f"max {results['parallelogram_max_um']:.3f} um\n"
+            f"  scale {results['scale']:.6f}: groove width {results['groove_width_mm']:.5f} mm "
+            f"(u {results.get('groove_width_u_mm', float('nan')):.5f} mm)"
+        )
+    if kind == "repeatability":
+        lines = [f"  RP (mm) after {results['n_cycles']} cycles:"]
+        for test, e in results["tests"].items():
+            if "rp_mm" in e:
+                lo, hi = e["rp_ci95_mm"]
+                lines.append(f"    {test:>4}  RP {e['rp_mm']:.5f}  (95 % {lo:.5f}-{hi:.5f})")
+            else:
+                lines.append(f"    {test:>4}  {e.get('error')}")
+        return "\n".join(lines)
+    if kind == "sweep":
+        return f"  {len(results['trials'])} trials; best: trial {results['best']}"
+    return json.dumps(results)[:500]

@@ -1,0 +1,191 @@
+"""Session plans: what a session does, as a list of steps over the device interfaces.
+
+A plan is a typed, validated parameter model plus three functions (see :class:`Plan`):
+
+* ``steps(params, ctx)`` yields the session's :class:`Step` s, each a short list of :data:`Action` s
+  (move the arm, turn the table, settle, capture). Steps are the runner's safe points: it pauses, stops
+  and resumes between them. A plan's steps are a pure function of its parameters and the context, so
+  the runner can list them all for pre-flight (every motion checked before anything moves) and for
+  resuming a session after a crash (skip the steps recorded as done).
+* ``resume_prelude(params, ctx, next_step)`` gives the steps to run before resuming at ``next_step``
+  (e.g. return to the reference pose and capture the reference again).
+* ``analyse(params, ctx, captures)`` turns the session's measured captures into its results.
+
+Offline plans (``sweep``, ``reanalyse``) have no device actions: their steps carry a :class:`Compute`.
+Plans never touch a concrete driver; the runner executes the actions (architecture: plans and the
+runner see devices only through ``station/devices.py``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Protocol
+
+from pydantic import BaseModel
+
+from station._pydantic import problems as describe
+
+if TYPE_CHECKING:
+    from station.record import Record
+    from station.vision import MeasureParams
+
+
+@dataclass(frozen=True)
+class MoveJoints:
+    """Move the arm to six absolute joint angles (deg)."""
+
+    target_deg: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class MoveTable:
+    """Set the X-Y table to (x, y) mm; ``overshoot`` marks the approach move that takes up backlash."""
+
+    x_mm: float
+    y_mm: float
+    overshoot: bool = False
+
+
+@dataclass(frozen=True)
+class SetSpeed:
+    """Set the arm's speed override (percent)."""
+
+    percent: int
+
+
+@dataclass(frozen=True)
+class Settle:
+    """Wait for the arm to settle: ``seconds`` after arrival."""
+
+    seconds: float
+
+
+@dataclass(frozen=True)
+class Capture:
+    """Grab ``frames`` frames, store each raw, measure each; ``meta`` goes with every capture."""
+
+    frames: int
+    meta: Mapping[str, Any]
+
+
+@dataclass(frozen=True)
+class Compute:
+    """Offline work (no device): ``run(ctx)`` returns a JSON-ready dict stored as the step's data."""
+
+    run: Callable[[PlanContext], dict[str, Any]]
+    label: str = ""
+
+
+Action = MoveJoints | MoveTable | SetSpeed | Settle | Capture | Compute
+
+
+@dataclass(frozen=True)
+class Step:
+    """One safe-point-to-safe-point unit of a session."""
+
+    index: int
+    name: str
+    actions: tuple[Action, ...]
+    meta: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class CaptureResult:
+    """What analysis gets per capture: its metadata and its measurement (``None`` when it failed)."""
+
+    capture_id: int
+    step_index: int
+    frame_index: int
+    meta: Mapping[str, Any]
+    measurement: Mapping[str, Any] | None
+    width: int = 0
+    height: int = 0
+
+
+@dataclass
+class PlanContext:
+    """What a plan may know about the station.
+
+    ``reference_joints_deg``: the configured reference pose (where the camera sees the crossing).
+    ``camera_height_mm``: height of the camera's front above the artifact plane for given joints, when
+    the robot's configuration says where both are (used to choose move directions away from the
+    artifact). ``measure_params``: the session's measurement parameters. ``record``: the record (offline
+    plans read stored sessions from it). ``jobs``: worker processes for offline plans.
+    """
+
+    measure_params: MeasureParams
+    reference_joints_deg: tuple[float, ...] | None = None
+    camera_height_mm: Callable[[Sequence[float]], float] | None = None
+    record: Record | None = None
+    session_id: str | None = None
+    jobs: int = 1
+
+
+class PlanError(ValueError):
+    """A plan cannot run with these parameters or this station (the message says what to change)."""
+
+
+class Plan(Protocol):
+    """A session kind: its parameter model and its three functions."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def Params(self) -> type[BaseModel]: ...  # noqa: N802 - a class, named as one
+
+    @property
+    def needs(self) -> frozenset[str]:
+        """The devices it drives: "robot", "camera", "table"."""
+
+    def steps(self, params: Any, ctx: PlanContext) -> Iterator[Step]: ...
+
+    def resume_prelude(self, params: Any, ctx: PlanContext, next_step: Step) -> list[Step]: ...
+
+    def analyse(self, params: Any, ctx: PlanContext, captures: Sequence[CaptureResult]) -> dict[str, Any]: ...
+
+
+def get_plan(name: str) -> Plan:
+    """The plan called ``name``; PlanError listing the plans otherwise."""
+    from station.plans.offline import REANALYSE, SWEEP
+    from station.plans.repeatability import REPEATABILITY
+    from station.plans.validation import VALIDATION
+
+    plans: dict[str, Plan] = {p.name: p for p in (VALIDATION, REPEATABILITY, SWEEP, REANALYSE)}
+    if name not in plans:
+        raise PlanError(f"no plan named {name!r}; plans: {', '.join(sorted(plans))}")
+    return plans[name]
+
+
+PLAN_NAMES = ("validation", "repeatability", "sweep", "reanalyse")
+
+
+def parse_params(plan: Plan, values: Mapping[str, Any]) -> BaseModel:
+    """Validate a plan's parameters; PlanError naming every bad field and what is allowed."""
+    from pydantic import ValidationError
+
+    try:
+        return plan.Params.model_validate(dict(values))
+    except ValidationError as exc:
+        problems = describe(exc, plan.name)
+        raise PlanError(f"{plan.name} parameters: {problems}") from exc
+
+
+__all__ = [
+    "PLAN_NAMES",
+    "Action",
+    "Capture",
+    "CaptureResult",
+    "Compute",
+    "MoveJoints",
+    "MoveTable",
+    "Plan",
+    "PlanContext",
+    "PlanError",
+    "SetSpeed",
+    "Settle",
+    "Step",
+    "get_plan",
+    "parse_params",
+]

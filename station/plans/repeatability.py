@@ -1,0 +1,222 @@
+"""The seed's repeatability test (section 5, eqs. 13-18, Table 2, Figures 16-17), after ISO 9283.
+
+Per test the arm captures at the reference pose, then ``cycles`` times leaves it and returns and
+captures again, after ``warmup_cycles`` uncaptured cycles (ISO 9283 asks for a warm-up). A joint test
+moves joint ``j`` by ``delta_deg`` and back; a sequence test visits its list of joint targets and
+returns. RP = l-bar + 3 S_l of the positions at the return captures, with a bootstrap 95 % interval for that
+number of cycles. The position is the tool point's: where the camera's optical axis meets the artifact,
+in the artifact's axes (mm), from one homography fitted over the test's captures.
+
+The sign of each joint's excursion defaults to the one that does not bring the camera toward the
+artifact (from the kinematics and the configured camera and artifact plane); pre-flight then checks
+every motion with the driver.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator, Sequence
+from typing import Any
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from station.devices import JOINT_COUNT
+from station.metrology import repeatability, rp_interval
+from station.plans import Capture, CaptureResult, MoveJoints, PlanContext, PlanError, SetSpeed, Settle, Step
+from station.plans._analysis import failures, group_mean, measured, principal_point, series_positions_mm
+
+#: The seed's Table 2: RP (mm) per joint, delta 10 deg, about 80 % speed and 50 % rated load, 30 cycles.
+SEED_TABLE2_MM = {"J1": 0.01664, "J2": 0.01813, "J3": 0.02321, "J4": 0.01671, "J5": 0.05299, "J6": 0.01601}
+
+Joints6 = tuple[float, float, float, float, float, float]
+
+
+class RepeatabilityParams(BaseModel):
+    """Parameters of a repeatability session."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    cycles: int = Field(30, ge=2, le=100_000)
+    warmup_cycles: int = Field(3, ge=0, le=1000)
+    joints: list[int] = Field(default_factory=lambda: [1, 2, 3, 4, 5, 6])
+    delta_deg: float = Field(10.0, gt=0, le=90)
+    signs: list[int] | None = Field(None, description="six values of +1/-1; default: away from the artifact")
+    sequences: dict[str, list[Joints6]] = Field(default_factory=dict)
+    speed_pct: int = Field(80, ge=1, le=100)
+    frames_per_capture: int = Field(1, ge=1, le=100)
+    settle_s: float = Field(0.0, ge=0, le=600)
+    load_kg: float | None = Field(None, ge=0, le=100, description="recorded only")
+    reference_joints_deg: Joints6 | None = None
+
+    @field_validator("joints")
+    @classmethod
+    def _joints(cls, v: list[int]) -> list[int]:
+        if not v and v is not None:
+            return v
+        bad = [j for j in v if not 1 <= j <= JOINT_COUNT]
+        if bad:
+            raise ValueError(f"joints must be numbers 1-{JOINT_COUNT}, got {bad}")
+        if len(set(v)) != len(v):
+            raise ValueError(f"joints repeat: {v}")
+        return v
+
+    @field_validator("signs")
+    @classmethod
+    def _signs(cls, v: list[int] | None) -> list[int] | None:
+        if v is not None and (len(v) != JOINT_COUNT or any(s not in (-1, 1) for s in v)):
+            raise ValueError(f"signs must be six values, each +1 or -1, got {v}")
+        return v
+
+    @field_validator("sequences")
+    @classmethod
+    def _sequences(cls, v: dict[str, list[Joints6]]) -> dict[str, list[Joints6]]:
+        for name, targets in v.items():
+            if not name or name.upper() in {f"J{j}" for j in range(1, 7)}:
+                raise ValueError(f"sequence name {name!r} is empty or clashes with a joint test's name")
+            if not targets:
+                raise ValueError(f"sequence {name!r} has no targets")
+            if not all(math.isfinite(a) for t in targets for a in t):
+                raise ValueError(f"sequence {name!r} has a non-finite angle")
+        return v
+
+
+def test_names(params: RepeatabilityParams) -> list[str]:
+    return [f"J{j}" for j in params.joints] + list(params.sequences)
+
+
+def choose_signs(params: RepeatabilityParams, ctx: PlanContext, reference: Sequence[float]) -> list[int]:
+    """Per joint, the sign that does not bring the camera toward the artifact (``+1`` where it makes no
+    difference or the geometry is unknown); explicit ``signs`` win."""
+    if params.signs is not None:
+        return list(params.signs)
+    signs = []
+    for j in range(JOINT_COUNT):
+        if ctx.camera_height_mm is None:
+            signs.append(1)
+            continue
+        plus = list(reference)
+        minus = list(reference)
+        plus[j] += params.delta_deg
+        minus[j] -= params.delta_deg
+        h_plus, h_minus = ctx.camera_height_mm(plus), ctx.camera_height_mm(minus)
+        signs.append(-1 if h_minus > h_plus + 1e-6 else 1)
+    return signs
+
+
+class RepeatabilityPlan:
+    name = "repeatability"
+    Params = RepeatabilityParams
+    needs = frozenset({"robot", "camera"})
+
+    def _reference(self, params: RepeatabilityParams, ctx: PlanContext) -> tuple[float, ...]:
+        ref = params.reference_joints_deg or ctx.reference_joints_deg
+        if ref is None:
+            raise PlanError(
+                "no reference pose: configure robot.reference_joints_deg or pass reference_joints_deg"
+            )
+        return tuple(float(a) for a in ref)
+
+    def _excursions(
+        self, params: RepeatabilityParams, ctx: PlanContext
+    ) -> list[tuple[str, list[tuple[float, ...]]]]:
+        ref = self._reference(params, ctx)
+        signs = choose_signs(params, ctx, ref)
+        tests: list[tuple[str, list[tuple[float, ...]]]] = []
+        for j in params.joints:
+            away = list(ref)
+            away[j - 1] += signs[j - 1] * params.delta_deg
+            tests.append((f"J{j}", [tuple(away)]))
+        for name, targets in params.sequences.items():
+            tests.append((name, [tuple(float(a) for a in t) for t in targets]))
+        return tests
+
+    def steps(self, params: RepeatabilityParams, ctx: PlanContext) -> Iterator[Step]:
+        if not params.joints and not params.sequences:
+            raise PlanError("nothing to test: give joints and/or sequences")
+        ref = self._reference(params, ctx)
+        index = 0
+        first = True
+        for test, away in self._excursions(params, ctx):
+            prefix = (SetSpeed(params.speed_pct),) if first else ()
+            first = False
+            meta = {"role": "reference", "test": test}
+            yield Step(
+                index, f"{test} reference", (*prefix, MoveJoints(ref), *self._capture(params, meta)), meta
+            )
+            index += 1
+            for k in range(params.warmup_cycles):
+                wmeta = {"role": "warmup", "test": test, "cycle": k}
+                yield Step(
+                    index, f"{test} warm-up {k + 1}", (*(MoveJoints(a) for a in away), MoveJoints(ref)), wmeta
+                )
+                index += 1
+            for k in range(params.cycles):
+                cmeta = {"role": "cycle", "test": test, "cycle": k}
+                actions = (*(MoveJoints(a) for a in away), MoveJoints(ref), *self._capture(params, cmeta))
+                yield Step(index, f"{test} cycle {k + 1}", actions, cmeta)
+                index += 1
+
+    def _capture(self, params: RepeatabilityParams, meta: dict[str, Any]) -> tuple[Any, ...]:
+        settle = (Settle(params.settle_s),) if params.settle_s else ()
+        return (*settle, Capture(params.frames_per_capture, meta))
+
+    def resume_prelude(self, params: RepeatabilityParams, ctx: PlanContext, next_step: Step) -> list[Step]:
+        """Back to the reference pose at the session's speed, and the reference captured again."""
+        ref = self._reference(params, ctx)
+        meta = {"role": "reference", "test": next_step.meta.get("test"), "resumed": True}
+        actions = (SetSpeed(params.speed_pct), MoveJoints(ref), *self._capture(params, meta))
+        return [Step(-1, f"resume: {next_step.meta.get('test')} reference", actions, meta)]
+
+    def analyse(
+        self, params: RepeatabilityParams, ctx: PlanContext, captures: Sequence[CaptureResult]
+    ) -> dict[str, Any]:
+        width = ctx.measure_params.groove_width_mm
+        tests: dict[str, Any] = {}
+        excursions = dict(self._excursions(params, ctx))
+        for test in test_names(params):
+            mine = [c for c in measured(captures) if c.meta.get("test") == test]
+            cycles = [c for c in mine if c.meta.get("role") == "cycle"]
+            if len({c.meta["cycle"] for c in cycles}) < 3:
+                tests[test] = {
+                    "error": f"only {len(cycles)} cycle captures were measured; RP needs at least 3"
+                }
+                continue
+            # The tool point: where the optical axis meets the artifact, relative to the crossing (RP is
+            # a position repeatability; a turn about the optical axis does not move this point).
+            pp = principal_point(mine, ctx.measure_params.camera_matrix)
+            pos = series_positions_mm(mine, width, relative_to_px=pp)
+            is_cycle = [c.meta.get("role") == "cycle" for c in mine]
+            keys, points = group_mean([c.meta["cycle"] for c in cycles], pos[np.array(is_cycle)])
+            rep = repeatability(points)
+            lo, hi = rp_interval(points)
+            entry: dict[str, Any] = {
+                "kind": "sequence" if test in params.sequences else "joint",
+                "points_mm": points.tolist(),
+                "cycles": [int(k) for k in keys],
+                "barycentre_mm": list(rep.barycentre),
+                "l_bar_mm": rep.l_bar,
+                "s_l_mm": rep.s_l,
+                "rp_mm": rep.rp,
+                "rp_ci95_mm": [lo, hi],
+                "n_cycles": len(points),
+                "failures": failures([c for c in captures if c.meta.get("test") == test]),
+            }
+            if test in params.sequences:
+                entry["targets_deg"] = [list(t) for t in params.sequences[test]]
+            else:
+                entry["joint"] = int(test[1:])
+                entry["delta_deg"] = params.delta_deg
+                entry["away_deg"] = list(excursions[test][0])
+            tests[test] = entry
+        return {
+            "rp_mm": {t: e["rp_mm"] for t, e in tests.items() if "rp_mm" in e},
+            "n_cycles": params.cycles,
+            "tests": tests,
+            "speed_pct": params.speed_pct,
+            "load_kg": params.load_kg,
+            "seed_table2_mm": SEED_TABLE2_MM,
+        }
+
+
+REPEATABILITY = RepeatabilityPlan()

@@ -1,0 +1,149 @@
+"""The seed's validation (section 4, Figures 13-15): the artifact moved through a known pattern on the
+manual micrometer X-Y table, one operator prompt per position, each position's image measured, and the
+measured displacements compared with the commanded ones after rigid, similarity and affine fits.
+
+Every position is approached from the same direction by default (``approach = "same-direction"``): a
+position reached by turning a micrometer backwards is first overshot by ``approach_um`` and then
+reached forwards, which takes the micrometers' backlash out, as metrologists do. ``"direct"`` is the
+seed's plain path. The similarity fit's scale estimates the artifact's true groove width (known only to
++0/-0.002 in): ``groove_width_mm / scale``, with its standard uncertainty, stored as the station's scale
+calibration.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator, Sequence
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from station.metrology import compare_displacements, scale_uncertainty
+from station.patterns import STEP_UM, STEPS_PER_SIDE, validation_pattern_um
+from station.plans import Capture, CaptureResult, MoveTable, PlanContext, PlanError, Settle, Step
+from station.plans._analysis import failures, group_mean, measured, series_positions_mm
+
+
+class ValidationParams(BaseModel):
+    """Parameters of a validation session (um where the seed reports um)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    pattern_um: list[tuple[float, float]] | None = Field(
+        None, description="table positions (um, table axes); default: the seed's 40-position square"
+    )
+    step_um: float = Field(STEP_UM, gt=0, le=10_000, description="the default square's step")
+    steps_per_side: int = Field(
+        STEPS_PER_SIDE, ge=1, le=1000, description="the default square's steps a side"
+    )
+    origin_mm: tuple[float, float] = Field((0.0, 0.0), description="table position of the pattern's (0, 0)")
+    frames_per_position: int = Field(1, ge=1, le=100)
+    approach: Literal["same-direction", "direct"] = "same-direction"
+    approach_um: float = Field(25.4, gt=0, le=1000, description="overshoot before a backwards approach")
+    settle_s: float = Field(0.0, ge=0, le=600)
+    prompt_timeout_s: float | None = Field(None, gt=0, description="operator answer timeout (None: wait)")
+
+    @field_validator("pattern_um")
+    @classmethod
+    def _pattern(cls, v: list[tuple[float, float]] | None) -> list[tuple[float, float]] | None:
+        if v is None:
+            return v
+        if len(v) < 3:
+            raise ValueError(f"a pattern needs at least 3 positions, got {len(v)}")
+        if not all(math.isfinite(a) and math.isfinite(b) for a, b in v):
+            raise ValueError("pattern positions must be finite numbers (um)")
+        return v
+
+    def positions_um(self) -> list[tuple[float, float]]:
+        if self.pattern_um is not None:
+            return [(float(x), float(y)) for x, y in self.pattern_um]
+        return validation_pattern_um(self.step_um, self.steps_per_side)
+
+
+class ValidationPlan:
+    name = "validation"
+    Params = ValidationParams
+    needs = frozenset({"camera", "table"})
+
+    def steps(self, params: ValidationParams, ctx: PlanContext) -> Iterator[Step]:
+        ox, oy = params.origin_mm
+        last: tuple[float, float] | None = None
+        for i, (x_um, y_um) in enumerate(params.positions_um()):
+            x, y = ox + x_um / 1000.0, oy + y_um / 1000.0
+            actions: list[Any] = []
+            if params.approach == "same-direction" and (last is None or x < last[0] or y < last[1]):
+                a = params.approach_um / 1000.0
+                actions.append(MoveTable(x - a, y - a, overshoot=True))
+            actions.append(MoveTable(x, y))
+            if params.settle_s:
+                actions.append(Settle(params.settle_s))
+            meta = {"role": "position", "position": i, "commanded_um": [x_um, y_um], "table_mm": [x, y]}
+            actions.append(Capture(params.frames_per_position, meta))
+            yield Step(i, f"position {i}", tuple(actions), meta)
+            last = (x, y)
+
+    def resume_prelude(self, params: ValidationParams, ctx: PlanContext, next_step: Step) -> list[Step]:
+        # Table positions are absolute micrometer readings: nothing to re-establish. The first step after
+        # a resume is approached from below (same-direction) because its predecessor is unknown.
+        return []
+
+    def analyse(
+        self, params: ValidationParams, ctx: PlanContext, captures: Sequence[CaptureResult]
+    ) -> dict[str, Any]:
+        ok = [c for c in measured(captures) if c.meta.get("role") == "position"]
+        width = ctx.measure_params.groove_width_mm
+        if len({c.meta["position"] for c in ok}) < 3:
+            raise PlanError(
+                f"only {len({c.meta['position'] for c in ok})} positions were measured; at least 3 are needed"
+            )
+        pos_mm = series_positions_mm(ok, width)
+        keys, mean_mm = group_mean([c.meta["position"] for c in ok], pos_mm)
+        commanded = np.array(
+            [next(c.meta["commanded_um"] for c in ok if c.meta["position"] == k) for k in keys]
+        )
+        commanded = commanded - commanded[0]
+        measured_um = (mean_mm - mean_mm[0]) * 1000.0
+        comp = compare_displacements(commanded, measured_um)
+        rigid_res = comp.measured_um - (comp.commanded_um @ comp.rigid.A.T + comp.rigid.t)
+        affine_res = comp.measured_um - (comp.commanded_um @ comp.affine.A.T + comp.affine.t)
+        scale = comp.similarity.scale
+        u_scale = scale_uncertainty(commanded, comp.similarity)
+        width_est = width / scale
+        results: dict[str, Any] = {
+            "mean_um": comp.rigid.mean,
+            "max_um": comp.rigid.max,
+            "parallelogram_mean_um": comp.affine.mean,
+            "parallelogram_max_um": comp.affine.max,
+            "scale": scale,
+            "groove_width_mm": width_est,
+            "groove_width_u_mm": width * u_scale / scale**2,
+            "groove_width_used_mm": width,
+            "rigid": comp.rigid.summary_um(),
+            "similarity": comp.similarity.summary_um(),
+            "affine": comp.affine.summary_um(),
+            "positions": [
+                {
+                    "index": int(k),
+                    "commanded_um": [float(v) for v in commanded[j]],
+                    "measured_um": [float(v) for v in measured_um[j]],
+                    "error_um": [float(v) for v in rigid_res[j]],
+                    "error_parallelogram_um": [float(v) for v in affine_res[j]],
+                }
+                for j, k in enumerate(keys)
+            ],
+            "approach": params.approach,
+            "n_positions": len(keys),
+            "failures": failures([c for c in captures if c.meta.get("role") == "position"]),
+            "scale_calibration": None,
+        }
+        if params.approach == "same-direction" and ctx.session_id is not None:
+            results["scale_calibration"] = {
+                "groove_width_mm": width_est,
+                "u_mm": results["groove_width_u_mm"],
+                "session_id": ctx.session_id,
+            }
+        return results
+
+
+VALIDATION = ValidationPlan()

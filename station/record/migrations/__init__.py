@@ -1,0 +1,1 @@
+"""Alembic migrations of the record, run programmatically by ``station.record._engine``."""

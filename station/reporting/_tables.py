@@ -1,0 +1,311 @@
+"""The report's tables, each built once and rendered as text (the CLI) or HTML (the report).
+
+The seed's tables: the validation error table (section 4, Figures 14-15: raw, scale and parallelogram
+errors), Table 1 (the parameter study; its column logic is shared with ``station sweep`` through
+``station.report.sweep_table``) and Table 2 (repeatability, eq. 13: RP = l-bar + 3 S_l).
+"""
+
+from __future__ import annotations
+
+import html
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from station.report import SweepRow, is_seed_table_1, seed_table_1, sweep_note, sweep_table, table
+from station.reporting._model import (
+    FailedTest,
+    RepeatabilityResults,
+    RepeatabilityTest,
+    Session,
+    SweepResults,
+    ValidationResults,
+    format_date,
+    format_value,
+)
+
+
+@dataclass(frozen=True)
+class Table:
+    """A titled table of text cells; ``marked`` rows (e.g. the best trial) are emphasised in HTML."""
+
+    title: str
+    headers: tuple[str, ...]
+    rows: tuple[tuple[str, ...], ...]
+    notes: tuple[str, ...] = ()
+    marked: frozenset[int] = frozenset()
+
+    def text(self) -> str:
+        parts = [self.title, table(self.headers, self.rows)]
+        if self.notes:
+            parts.append("\n".join(self.notes))
+        return "\n".join(parts)
+
+    def html(self) -> str:
+        e = html.escape
+        head = "".join(f"<th>{e(h)}</th>" for h in self.headers)
+        body = []
+        for i, row in enumerate(self.rows):
+            cls = ' class="marked"' if i in self.marked else ""
+            cells = "".join(f"<td>{e(c)}</td>" for c in row)
+            body.append(f"<tr{cls}>{cells}</tr>")
+        notes = "".join(f'<p class="note">{e(n)}</p>' for n in self.notes)
+        return (
+            f"<table><caption>{e(self.title)}</caption><thead><tr>{head}</tr></thead>"
+            f"<tbody>{''.join(body)}</tbody></table>{notes}"
+        )
+
+
+def _make(title: str, headers: Sequence[str], rows: Sequence[Sequence[str]], *notes: str) -> Table:
+    return Table(title, tuple(headers), tuple(tuple(r) for r in rows), tuple(n for n in notes if n))
+
+
+def session_table(s: Session) -> Table:
+    """Who, what, when: id, kind, state, date, software, source session and error."""
+    rows = [
+        ("id", s.id),
+        ("kind", s.kind),
+        ("state", s.state),
+        ("created", format_date(s.created_at)),
+        ("software", ", ".join(f"{k} {format_value(v)}" for k, v in s.software.items()) or "not recorded"),
+    ]
+    if s.source_session is not None:
+        rows.append(("source session", s.source_session))
+    if s.error is not None:
+        rows.append(("error", s.error))
+    return _make("Session", ("field", "value"), rows)
+
+
+def parameters_table(s: Session) -> Table:
+    """One row per parameter; groups (the plan's, the measurement's) flattened as ``group.name``."""
+    rows = []
+    for k, v in s.params.items():
+        if isinstance(v, dict) and v:
+            rows += [(f"{k}.{name}", format_value(value)) for name, value in v.items()]
+        else:
+            rows.append((str(k), format_value(v)))
+    return _make("Parameters", ("parameter", "value"), rows or [("(none recorded)", "")])
+
+
+def devices_table(s: Session) -> Table:
+    """One row per device; one column per identity field (model, serial or port, firmware, ...)."""
+    fields: list[str] = []
+    for ident in s.identities.values():
+        if isinstance(ident, dict):
+            fields += [str(k) for k in ident if str(k) not in fields]
+    rows = []
+    for name, ident in s.identities.items():
+        if isinstance(ident, dict):
+            rows.append([str(name), *(format_value(ident.get(f, "")) for f in fields)])
+        else:
+            rows.append([str(name), format_value(ident), *([""] * (len(fields) - 1))])
+    if not rows:
+        return _make("Devices", ("device", "identity"), [("(none recorded)", "")])
+    return _make("Devices", ("device", *(fields or ["identity"])), rows)
+
+
+def validation_tables(r: ValidationResults, session_id: str) -> dict[str, Table]:
+    """The validation error table (seed Figures 14-15) and, per position, the displacements."""
+    fits = [
+        ("raw (rigid)", r.rigid),
+        ("scale (similarity)", r.similarity),
+        ("parallelogram (affine)", r.affine),
+    ]
+    rows = [
+        [
+            name,
+            f"{f.mean_um:.4f}",
+            f"{f.max_um:.4f}",
+            "" if f.rms_um is None else f"{f.rms_um:.4f}",
+            "" if f.scale is None else f"{f.scale:.6f}",
+        ]
+        for name, f in fits
+    ]
+    width = f"groove width from the scale fit: {r.groove_width_mm:.5f} mm"
+    if r.groove_width_u_mm is not None:
+        width += f", u = {r.groove_width_u_mm:.5f} mm"
+    width += f" (similarity scale {r.scale:.6f}"
+    if r.groove_width_used_mm is not None:
+        width += f"; images measured with {r.groove_width_used_mm:.5f} mm"
+    notes = [
+        "displacement errors after each best fit of commanded to measured positions, in um",
+        width + ")",
+    ]
+    if r.approach is not None:
+        notes.append(f"approach: {r.approach}")
+    if r.scale_calibration is not None:
+        c = r.scale_calibration
+        if c.session_id is None:
+            origin = ""
+        elif str(c.session_id) == session_id:
+            origin = " (estimated by this session)"
+        else:
+            origin = f" (from session {c.session_id})"
+        notes.append(
+            f"scale calibration: groove width {c.groove_width_mm:.5f} mm, u = {c.u_mm:.5f} mm{origin}"
+        )
+    out = {
+        "validation": _make(
+            "Validation errors", ("fit", "mean_um", "max_um", "rms_um", "scale"), rows, *notes
+        )
+    }
+    if r.positions:
+        prow = [
+            [
+                str(p.index),
+                f"{p.commanded_um[0]:.4f}",
+                f"{p.commanded_um[1]:.4f}",
+                f"{p.measured_um[0]:.4f}",
+                f"{p.measured_um[1]:.4f}",
+                f"{_norm(p.error_um):.4f}",
+                f"{_norm(p.error_parallelogram_um):.4f}",
+            ]
+            for p in r.positions
+        ]
+        out["positions"] = _make(
+            "Positions",
+            ("index", "cmd_x_um", "cmd_y_um", "meas_x_um", "meas_y_um", "err_raw_um", "err_par_um"),
+            prow,
+            "commanded: table displacements; measured: image displacements (artifact axes); "
+            "err_raw / err_par: |error| after the rigid / parallelogram fit",
+        )
+    if r.failures:
+        out["failures"] = failures_table(r.failures)
+    return out
+
+
+def failures_table(failures: Sequence[Mapping[str, Any]], tests: Sequence[str] | None = None) -> Table:
+    """Captures whose measurement failed: where (test, step, frame, capture) and why."""
+    rows = []
+    for i, f in enumerate(failures):
+        error = format_value(f.get("error") or "not measured") + (f" ({f['code']})" if f.get("code") else "")
+        where = [format_value(f.get(k)) for k in ("step_index", "frame_index", "capture_id")]
+        rows.append([*([tests[i]] if tests is not None else []), *where, error])
+    headers = [*(["test"] if tests is not None else []), "step", "frame", "capture", "error"]
+    return _make("Captures not measured", headers, rows, "kept in the record; left out of the results")
+
+
+def _norm(v: tuple[float, float]) -> float:
+    return float((v[0] ** 2 + v[1] ** 2) ** 0.5)
+
+
+def motion(name: str, t: RepeatabilityTest) -> str:
+    """A test's motion in words: 'joint 2, -10 deg' or 'sequence, 3 targets'."""
+    if t.kind == "joint":
+        joint = "?" if t.joint is None else str(t.joint)
+        return f"joint {joint}" + ("" if t.delta_deg is None else f", {t.delta_deg:+g} deg")
+    if t.targets_deg is not None:
+        return f"{t.kind}, {len(t.targets_deg)} targets"
+    return t.kind
+
+
+def repeatability_tables(r: RepeatabilityResults) -> dict[str, Table]:
+    """The seed's Table 2 with each test's statistics (eq. 13) and, when given, the seed's RP."""
+    seed = r.seed_table2_mm or {}
+    headers = ["test", "motion", "l_bar_mm", "S_l_mm", "RP_mm", "RP_95%_mm", "N"]
+    if seed:
+        headers.append("seed_RP_mm")
+    rows = []
+    names = list(r.tests) + [n for n in r.rp_mm if n not in r.tests]
+    failed: list[tuple[str, dict[str, Any]]] = []
+    for name in names:
+        t = r.tests.get(name)
+        if t is None:  # an RP without its test's details (partial results)
+            row = [name, "", "", "", f"{r.rp_mm[name]:.5f}", "", ""]
+        elif isinstance(t, FailedTest):
+            row = [name, f"no RP: {t.error}", "", "", "", "", ""]
+        else:
+            failed += [(name, f) for f in t.failures]
+            ci = "" if t.rp_ci95_mm is None else f"{t.rp_ci95_mm[0]:.5f} - {t.rp_ci95_mm[1]:.5f}"
+            row = [name, motion(name, t), f"{t.l_bar_mm:.5f}", f"{t.s_l_mm:.5f}", f"{t.rp_mm:.5f}"]
+            row += [ci, str(t.n_cycles)]
+        if seed:
+            row.append(f"{seed[name]:.5f}" if name in seed else "")
+        rows.append(row)
+    notes = [
+        "RP = l_bar + 3 S_l (seed eq. 13, ISO 9283); S_l with N - 1; l = distance of each attained "
+        "position from the barycentre; 95 % interval of RP by bootstrap over the N cycles",
+    ]
+    conditions = [f"{r.n_cycles} cycles per test"] if r.n_cycles is not None else []
+    if r.speed_pct is not None:
+        conditions.append(f"{r.speed_pct:g} % speed")
+    if r.load_kg is not None:
+        conditions.append(f"load {r.load_kg:g} kg")
+    if conditions:
+        notes.append(", ".join(conditions))
+    out = {"repeatability": _make("Repeatability (Table 2)", headers, rows, *notes)}
+    if failed:
+        out["failures"] = failures_table([f for _, f in failed], [name for name, _ in failed])
+    return out
+
+
+def sweep_fit(r: SweepResults) -> str:
+    """Which errors Table 1 shows: the seed's ``parallelogram`` when every measured trial recorded them,
+    else ``rigid`` (``mean_um`` / ``max_um``)."""
+    ok = [t for t in r.trials if t.mean_um is not None or t.parallelogram_mean_um is not None]
+    if all(t.parallelogram_mean_um is not None and t.parallelogram_max_um is not None for t in ok):
+        return "parallelogram"
+    return "rigid"
+
+
+def sweep_errors_um(r: SweepResults) -> list[tuple[float | None, float | None]]:
+    """(MeanE, MaxE) per trial in um, after the fit ``sweep_fit`` chose; None where the trial failed."""
+    if sweep_fit(r) == "parallelogram":
+        return [(t.parallelogram_mean_um, t.parallelogram_max_um) for t in r.trials]
+    return [(t.mean_um, t.max_um) for t in r.trials]
+
+
+def sweep_rows(r: SweepResults) -> list[SweepRow]:
+    """A sweep session's trials as Table 1 rows (um -> mm)."""
+    return [
+        SweepRow(
+            t.number,
+            t.overrides,
+            None if mx is None else mx / 1000.0,
+            None if mean is None else mean / 1000.0,
+            t.error,
+        )
+        for t, (mean, mx) in zip(r.trials, sweep_errors_um(r), strict=True)
+    ]
+
+
+def sweep_tables(r: SweepResults, mode: str | None) -> dict[str, Table]:
+    """Table 1 as ``station sweep`` prints it, best trial marked, and the seed's own beside it."""
+    seed_layout = is_seed_table_1([t.overrides for t in r.trials])
+    headers, rows = sweep_table(sweep_rows(r), r.best, seed_layout=seed_layout)
+    marked = frozenset(i for i, t in enumerate(r.trials) if t.number == r.best)
+    notes = sweep_note(mode, seed_layout=seed_layout, fit=sweep_fit(r)).split("\n")
+    if r.source_session is not None:
+        notes.append(f"images of validation session {r.source_session}")
+    out = {"sweep": Table("Parameter study (Table 1)", tuple(headers), _tuples(rows), tuple(notes), marked)}
+    if seed_layout:
+        out["seed_table_1"] = _make("The seed's Table 1", *seed_table_1())
+    return out
+
+
+def _tuples(rows: Sequence[Sequence[str]]) -> tuple[tuple[str, ...], ...]:
+    return tuple(tuple(r) for r in rows)
+
+
+def results_tables(s: Session) -> dict[str, Table]:
+    """The tables of a session's results (none when it has none)."""
+    r = s.results
+    if isinstance(r, ValidationResults):
+        return validation_tables(r, s.id)
+    if isinstance(r, RepeatabilityResults):
+        return repeatability_tables(r)
+    if isinstance(r, SweepResults):
+        measure = s.params.get("measure")
+        mode = measure.get("mode") if isinstance(measure, Mapping) else s.params.get("mode")
+        return sweep_tables(r, None if mode is None else str(mode))
+    return {}
+
+
+def all_tables(s: Session) -> dict[str, Table]:
+    """Session facts, devices, parameters, then the results' tables."""
+    return {
+        "session": session_table(s),
+        "devices": devices_table(s),
+        "parameters": parameters_table(s),
+        **results_tables(s),
+    }

@@ -1,0 +1,850 @@
+"""The session runner: runs one plan over the station's devices, records everything, obeys the operator.
+
+States (``RunnerState``)::
+
+    idle -> running <-> awaiting_operator
+            running -> pausing -> paused -> running
+            running | paused | awaiting_operator -> stopping -> stopped
+            any active state -> aborting -> aborted
+            any active state -> failed | succeeded
+    a session whose process died shows ``interrupted`` (found when the next runner takes the lock)
+
+* **Pause** takes effect at the next safe point (between steps); **resume** continues.
+* **Stop** finishes the step in progress, returns the arm to the reference pose, closes the devices.
+* **Abort** stops the robot now through its latched stop, cancels the open operator prompt, and moves
+  nothing more; the latch stays set on the driver.
+* A device error fails the session: the robot is stopped, its position read again and recorded, and
+  everything captured until then stays in the record.
+* One session at a time per station (data directory), across processes: a ``station_lock`` that a dead
+  owner's lock does not block. After a crash, ``resume`` continues after the last completed step.
+
+Every capture is stored (lossless, fsynced) before it is measured, and measured from the stored file, so
+re-analysis of the record reproduces the live results bit for bit. Events (state changes, steps, images,
+measurements, prompts, warnings, errors) are persisted with a per-session sequence number and a
+station-wide id, and passed to in-process listeners (the API streams them).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import enum
+import logging
+import math
+import socket
+import threading
+import time
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel
+
+from station import __version__
+from station.batch import measure_file
+from station.config import StationDevices
+from station.devices import (
+    DeviceError,
+    MotionRejectedError,
+    MotionStoppedError,
+    OperatorCancelledError,
+)
+from station.plans import (
+    Capture,
+    CaptureResult,
+    Compute,
+    MoveJoints,
+    MoveTable,
+    Plan,
+    PlanContext,
+    PlanError,
+    SetSpeed,
+    Settle,
+    Step,
+)
+from station.prompts import PromptError, PromptEvent
+from station.record import EventRow, Record, RecordError, SessionRow, station_lock
+from station.vision import MeasureParams
+
+log = logging.getLogger(__name__)
+
+PRELUDE_BASE = 1_000_000
+"""Step indices of resume preludes start here (plan steps are numbered from 0)."""
+FRAMES_PER_ATTEMPT = 1000
+"""A step's frames are numbered from attempt x FRAMES_PER_ATTEMPT (plans capture at most 100 per step)."""
+EARLY_FAILURE_CAPTURES = 3
+"""A session whose first this-many captures all fail to measure stops: something is misconfigured."""
+
+
+class RunnerState(enum.StrEnum):
+    IDLE = "idle"
+    RUNNING = "running"
+    PAUSING = "pausing"
+    PAUSED = "paused"
+    AWAITING_OPERATOR = "awaiting_operator"
+    STOPPING = "stopping"
+    STOPPED = "stopped"
+    ABORTING = "aborting"
+    ABORTED = "aborted"
+    FAILED = "failed"
+    SUCCEEDED = "succeeded"
+    INTERRUPTED = "interrupted"
+
+
+FINAL_STATES = frozenset(
+    {
+        RunnerState.STOPPED,
+        RunnerState.ABORTED,
+        RunnerState.FAILED,
+        RunnerState.SUCCEEDED,
+        RunnerState.INTERRUPTED,
+    }
+)
+ACTIVE_STATES = frozenset(
+    {
+        RunnerState.RUNNING,
+        RunnerState.PAUSING,
+        RunnerState.PAUSED,
+        RunnerState.AWAITING_OPERATOR,
+        RunnerState.STOPPING,
+        RunnerState.ABORTING,
+    }
+)
+
+
+class SessionError(RuntimeError):
+    """A session cannot be started, resumed or controlled (the message says why and what to do)."""
+
+
+class PreflightError(SessionError):
+    """Pre-flight found problems; nothing moved. ``problems`` lists every one."""
+
+    def __init__(self, problems: Sequence[str]) -> None:
+        super().__init__(
+            f"pre-flight found {len(problems)} problem(s); nothing moved:\n  - " + "\n  - ".join(problems)
+        )
+        self.problems = list(problems)
+
+
+class _AbortRequestedError(Exception):
+    """Raised in the runner thread when an abort was requested."""
+
+
+class _StopRequestedError(Exception):
+    """Raised at a safe point when a stop was requested."""
+
+
+@dataclass(frozen=True)
+class Progress:
+    done: int
+    total: int
+    eta_s: float | None
+
+    def to_json(self) -> dict[str, Any]:
+        return {"done": self.done, "total": self.total, "eta_s": self.eta_s}
+
+
+def software_info() -> dict[str, str]:
+    import platform
+
+    import cv2
+    import numpy as np
+
+    return {
+        "station": __version__,
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "opencv": cv2.__version__,
+        "host": socket.gethostname(),
+    }
+
+
+def reconcile(record: Record) -> list[str]:
+    """Mark sessions left in an active state by a dead process as ``interrupted``; call with the station
+    lock held (no live runner can own them then). Returns the ids marked."""
+    marked = []
+    for s in record.list_sessions():
+        if s.state in ACTIVE_STATES or (s.state == RunnerState.IDLE and s.updated_at is not None):
+            if s.state == RunnerState.IDLE:
+                continue
+            record.set_state(s.id, RunnerState.INTERRUPTED, error=s.error)
+            record.add_event(s.id, "state", {"state": RunnerState.INTERRUPTED, "was": s.state})
+            marked.append(s.id)
+    return marked
+
+
+class SessionRunner:
+    """Runs one plan: create (or resume) a session in the record, then ``run()`` (blocking) or
+    ``start()`` (a thread); control with ``pause``/``resume``/``stop``/``abort`` from any thread.
+
+    Parameters
+    ----------
+    record
+        Where everything goes.
+    plan, params
+        The plan and its validated parameters.
+    devices
+        The station's devices (built, not connected); ``None`` for offline plans.
+    measure_params
+        Measurement parameters of this session.
+    resume_session
+        An interrupted (or stopped, failed, aborted) session to continue; ``plan`` and ``params`` must
+        be its own.
+    """
+
+    def __init__(
+        self,
+        record: Record,
+        plan: Plan,
+        params: BaseModel,
+        *,
+        devices: StationDevices | None = None,
+        measure_params: MeasureParams | None = None,
+        scale_calibration: dict[str, Any] | None = None,
+        resume_session: SessionRow | None = None,
+        jobs: int = 1,
+        station: str = "default",
+        config_snapshot: dict[str, Any] | None = None,
+    ) -> None:
+        missing = sorted(n for n in plan.needs if devices is None or getattr(devices, n, None) is None)
+        if missing:
+            raise SessionError(f"a {plan.name} session needs a {' and a '.join(missing)}; configure them")
+        self.record = record
+        self.plan = plan
+        self.params = params
+        self.devices = devices
+        self.measure_params = measure_params or MeasureParams()
+        self.scale_calibration = scale_calibration
+        self.jobs = jobs
+        self._station = station
+        self._config_snapshot = config_snapshot
+        self._resume = resume_session
+        self._lock = threading.RLock()
+        self._cond = threading.Condition(self._lock)
+        self._state = RunnerState.IDLE
+        self._pause = False
+        self._stop = False
+        self._abort = False
+        self._listeners: list[Callable[[EventRow], None]] = []
+        self._thread: threading.Thread | None = None
+        self._done = 0
+        self._total = 0
+        self._t_steps: list[float] = []
+        self._session_id: str | None = resume_session.id if resume_session else None
+        self._captures = 0
+        self._measured_ok = 0
+        self._resting_state = RunnerState.RUNNING
+        self.error: str | None = None
+        self.results: dict[str, Any] | None = None
+
+    # ------------------------------------------------------------------ observation
+
+    @property
+    def session_id(self) -> str | None:
+        return self._session_id
+
+    @property
+    def state(self) -> RunnerState:
+        return self._state
+
+    def progress(self) -> Progress:
+        with self._lock:
+            done, total = self._done, self._total
+            eta = None
+            if self._t_steps and total:
+                per = sum(self._t_steps[-20:]) / len(self._t_steps[-20:])
+                eta = round(per * (total - done), 1)
+            return Progress(done, total, eta)
+
+    def subscribe(self, listener: Callable[[EventRow], None]) -> Callable[[], None]:
+        """Call ``listener(event)`` for every event of this session (from the runner's thread)."""
+        self._listeners.append(listener)
+        return lambda: self._listeners.remove(listener) if listener in self._listeners else None
+
+    # ------------------------------------------------------------------ control
+
+    def pause(self) -> None:
+        """Pause at the next safe point (between steps)."""
+        with self._lock:
+            if self._state in FINAL_STATES or self._stop or self._abort:
+                raise SessionError(f"cannot pause a session that is {self._state}")
+            self._pause = True
+            if self._state is RunnerState.RUNNING:
+                self._set_state(RunnerState.PAUSING)
+            self._cond.notify_all()
+
+    def resume(self) -> None:
+        """Continue after a pause."""
+        with self._lock:
+            if self._state not in (RunnerState.PAUSED, RunnerState.PAUSING):
+                raise SessionError(f"cannot resume a session that is {self._state}; only a paused one")
+            self._pause = False
+            if self._state is RunnerState.PAUSING:
+                self._set_state(RunnerState.RUNNING)
+            self._cond.notify_all()
+
+    def stop(self) -> None:
+        """Finish the step, return the arm to the reference pose, close the devices: ``stopped``."""
+        with self._lock:
+            if self._state in FINAL_STATES or self._abort:
+                return
+            self._stop = True
+            if self._state is not RunnerState.IDLE:
+                self._set_state(RunnerState.STOPPING)
+            self._cond.notify_all()
+
+    def abort(self, reason: str = "aborted by the operator") -> None:
+        """Stop the robot now (latched), cancel the open prompt, move nothing more: ``aborted``."""
+        with self._lock:
+            if self._state in FINAL_STATES or self._abort:
+                return
+            self._abort = True
+            self.error = self.error or reason
+            if self._state is not RunnerState.IDLE:
+                self._set_state(RunnerState.ABORTING)
+            self._cond.notify_all()
+        devices = self.devices
+        if devices is not None and devices.robot is not None:
+            try:
+                devices.robot.stop()
+            except Exception as exc:  # noqa: BLE001 - the prompt must still be cancelled
+                log.error("abort: robot stop failed: %s (use the E-stop)", exc)
+                self._event("error", {"message": f"robot stop failed during abort: {exc}; use the E-stop"})
+        if devices is not None:
+            prompt = devices.broker.current()
+            if prompt is not None:
+                with contextlib.suppress(PromptError):
+                    devices.broker.cancel(prompt.id, reason=reason, by="runner")
+
+    # ------------------------------------------------------------------ running
+
+    def create(self) -> SessionRow:
+        """Create the session in the record (state ``idle``) without running it."""
+        if self._session_id is not None:
+            return self.record.get_session(self._session_id)
+        identities = self.devices.identities() if self.devices is not None else {}
+        snapshot = self._config_snapshot
+        if snapshot is None and self.devices is not None:
+            snapshot = self.devices.config.snapshot()
+        row = self.record.create_session(
+            self.plan.name,
+            params={
+                "plan": self.params.model_dump(mode="json"),
+                "measure": self.measure_params.model_dump(mode="json"),
+                "scale_calibration": self.scale_calibration,
+            },
+            config=snapshot or {},
+            identities=identities,
+            software=software_info(),
+            station=self._station,
+        )
+        self._session_id = row.id
+        return row
+
+    def start(self) -> threading.Thread:
+        """Run in a new thread; returns it (join it, or watch ``state``)."""
+        thread = threading.Thread(target=self._run_quietly, name=f"runner-{self.plan.name}", daemon=True)
+        self._thread = thread
+        thread.start()
+        return thread
+
+    def _run_quietly(self) -> None:
+        try:
+            self.run()
+        except Exception:
+            log.exception("session runner ended with an error")
+
+    def run(self) -> RunnerState:
+        """Run the session to its end; returns the final state. Raises ``SessionLockError`` when another
+        session holds the station (nothing is created or moved then)."""
+        data_dir = Path(self.record.data_dir)
+        with station_lock(data_dir, self._session_id or "new"):
+            reconcile(self.record)
+            session = self.create()
+            sid = session.id
+            unsubscribe = None
+            if self.devices is not None:
+                unsubscribe = self.devices.broker.subscribe(self._on_prompt)
+            try:
+                final = self._run_session(sid)
+            finally:
+                if unsubscribe is not None:
+                    unsubscribe()
+            return final
+
+    def _run_session(self, sid: str) -> RunnerState:
+        ctx = self._context(sid)
+        final = RunnerState.FAILED
+        with self._lock:
+            if self._abort:
+                self._set_state(RunnerState.ABORTED)
+                self.record.set_state(sid, RunnerState.ABORTED, error=self.error)
+                return RunnerState.ABORTED
+            self._set_state(RunnerState.STOPPING if self._stop else RunnerState.RUNNING)
+        try:
+            with contextlib.ExitStack() as stack:
+                try:
+                    steps, prelude = self._steps(ctx)
+                    self._connect(stack)
+                    self._preflight(prelude + steps)
+                    for step in prelude + steps:
+                        self._safe_point()
+                        self._run_step(sid, step, ctx)
+                    final = RunnerState.SUCCEEDED
+                except _StopRequestedError:
+                    self._return_to_reference()
+                    final = RunnerState.STOPPED
+                finally:
+                    self._set_state_if_active(RunnerState.STOPPING if final is RunnerState.STOPPED else None)
+            self._analyse(sid, ctx, keep_going=final is not RunnerState.SUCCEEDED)
+            if final is RunnerState.SUCCEEDED and self.results is None:
+                final = RunnerState.FAILED
+        except (_AbortRequestedError, MotionStoppedError, OperatorCancelledError) as exc:
+            if self._abort:
+                final = RunnerState.ABORTED
+                self._reread_position("abort")
+                self._analyse(sid, ctx, keep_going=True)
+            else:
+                final = RunnerState.FAILED
+                self._fail(exc)
+                self._analyse(sid, ctx, keep_going=True)
+        except (DeviceError, RecordError, PlanError, SessionError, OSError, ValueError) as exc:
+            final = RunnerState.ABORTED if self._abort else RunnerState.FAILED
+            self._fail(exc)
+            self._analyse(sid, ctx, keep_going=True)
+        except BaseException as exc:  # KeyboardInterrupt, SystemExit: stop the arm, record, re-raise
+            self._fail(exc)
+            self._finish(sid, RunnerState.ABORTED if self._abort else RunnerState.FAILED)
+            raise
+        self._finish(sid, final)
+        return final
+
+    def _finish(self, sid: str, final: RunnerState) -> None:
+        if self.results is not None:
+            self.record.set_results(sid, self.results)
+        with self._lock:
+            self._set_state(final)
+        self.record.set_state(sid, final, error=None if final is RunnerState.SUCCEEDED else self.error)
+        log.info("session %s %s", sid, final)
+
+    def _fail(self, exc: BaseException) -> None:
+        message = str(exc) or type(exc).__name__
+        if self.error is None or not self._abort:
+            self.error = message
+        log.error("session failed: %s", message)
+        self._event("error", {"message": message, "type": type(exc).__name__})
+        robot = self.devices.robot if self.devices is not None else None
+        if robot is not None and isinstance(exc, DeviceError | KeyboardInterrupt | SystemExit):
+            with contextlib.suppress(Exception):
+                robot.stop()
+            self._reread_position("error")
+
+    def _reread_position(self, why: str) -> None:
+        robot = self.devices.robot if self.devices is not None else None
+        if robot is None:
+            return
+        try:
+            pos = robot.where()
+        except Exception as exc:  # noqa: BLE001 - recorded; the operator must look at the arm
+            self._event("warning", {"message": f"after the {why}, the position could not be read: {exc}"})
+            return
+        self._event("position", {"after": why, "joints_deg": list(pos.joints_deg)})
+
+    def _analyse(self, sid: str, ctx: PlanContext, *, keep_going: bool) -> None:
+        try:
+            captures = self._capture_results(sid)
+            self.results = self.plan.analyse(self.params, ctx, captures)
+        except (PlanError, ValueError, RecordError) as exc:
+            if not keep_going:
+                self.error = f"analysis failed: {exc}"
+                self._event("error", {"message": self.error})
+            else:
+                self._event("warning", {"message": f"no results from the partial session: {exc}"})
+            self.results = None
+
+    def _capture_results(self, sid: str) -> list[CaptureResult]:
+        source_of = getattr(self.plan, "source_session", None)
+        source = self.record.get_session(source_of(self.params)).id if source_of is not None else sid
+        measurements = {m.capture_id: m for m in self.record.measurements(sid)}
+        done = {s.index for s in self.record.steps(source) if s.state == "done"}
+        caps = [c for c in self.record.captures(source) if c.step_index in done]
+        # a step run again after an interruption keeps its earlier attempt's frames (nothing captured is
+        # lost); the analysis takes the attempt that completed: the latest
+        latest: dict[int, int] = {}
+        for c in caps:
+            latest[c.step_index] = max(latest.get(c.step_index, 0), c.frame_index // FRAMES_PER_ATTEMPT)
+        out = []
+        for cap in caps:
+            if cap.frame_index // FRAMES_PER_ATTEMPT != latest[cap.step_index]:
+                continue
+            m = measurements.get(cap.id)
+            out.append(
+                CaptureResult(
+                    cap.id,
+                    cap.step_index,
+                    cap.frame_index,
+                    cap.meta,
+                    m.result if m else None,
+                    cap.width,
+                    cap.height,
+                )
+            )
+        return out
+
+    # ------------------------------------------------------------------ steps
+
+    def _context(self, sid: str) -> PlanContext:
+        devices = self.devices
+        reference = devices.reference_joints_deg if devices is not None else None
+        return PlanContext(
+            measure_params=self.measure_params,
+            reference_joints_deg=reference,
+            camera_height_mm=camera_height_function(devices),
+            record=self.record,
+            session_id=sid,
+            jobs=self.jobs,
+        )
+
+    def _steps(self, ctx: PlanContext) -> tuple[list[Step], list[Step]]:
+        steps = list(self.plan.steps(self.params, ctx))
+        prelude: list[Step] = []
+        assert ctx.session_id is not None
+        if self._resume is not None:
+            done = {s.index for s in self.record.steps(ctx.session_id) if s.state == "done"}
+            remaining = [s for s in steps if s.index not in done]
+            n_pre = sum(1 for s in self.record.steps(ctx.session_id) if s.index >= PRELUDE_BASE)
+            if remaining and done:
+                for k, s in enumerate(self.plan.resume_prelude(self.params, ctx, remaining[0])):
+                    prelude.append(Step(PRELUDE_BASE + n_pre + k, s.name, s.actions, s.meta))
+            self._event(
+                "resumed", {"skipped_steps": len(steps) - len(remaining), "remaining": len(remaining)}
+            )
+            steps = remaining
+        with self._lock:
+            self._total = len(steps) + len(prelude)
+            self._done = 0
+        return steps, prelude
+
+    def _connect(self, stack: contextlib.ExitStack) -> None:
+        devices = self.devices
+        if devices is None:
+            return
+        for name in ("robot", "camera", "table"):
+            device = getattr(devices, name)
+            if device is None:
+                continue
+            device.connect()
+            stack.callback(self._close, name, device)
+        if devices.robot is not None:
+            devices.robot.clear_stop()
+        self._event("connected", {"devices": devices.identities()})
+
+    def _close(self, name: str, device: Any) -> None:
+        try:
+            device.close()
+        except Exception as exc:  # noqa: BLE001 - the others must still be closed
+            self._event("warning", {"message": f"closing the {name} failed: {exc}"})
+
+    def _preflight(self, steps: Sequence[Step]) -> None:
+        """Every problem at once, before anything moves."""
+        problems: list[str] = []
+        devices = self.devices
+        robot = devices.robot if devices is not None else None
+        uses_robot = any(isinstance(a, MoveJoints | SetSpeed) for s in steps for a in s.actions)
+        uses_table = any(isinstance(a, MoveTable) for s in steps for a in s.actions)
+        start: tuple[float, ...] | None = None
+        if robot is not None and uses_robot:
+            try:
+                status = robot.status()
+                if status.power is False:
+                    problems.append(
+                        "the arm's power is off: switch it on at the controller, then start again"
+                    )
+                if status.homed is False:
+                    problems.append(
+                        "the arm is not homed: home it (station robot ... home), then start again"
+                    )
+                start = tuple(robot.where().commanded_joints_deg)
+            except DeviceError as exc:
+                problems.append(f"the robot cannot be read: {exc}")
+        if robot is not None and uses_robot and start is not None:
+            previous: Sequence[float] = start
+            seen: set[tuple[tuple[float, ...], tuple[float, ...]]] = set()
+            for step in steps:
+                for action in step.actions:
+                    if not isinstance(action, MoveJoints):
+                        continue
+                    key = (tuple(previous), action.target_deg)
+                    if key not in seen:
+                        seen.add(key)
+                        try:
+                            robot.check_move(action.target_deg, start_deg=previous)
+                        except MotionRejectedError as exc:
+                            problems.append(f"{step.name}: {exc}")
+                    previous = action.target_deg
+        table = devices.table if devices is not None else None
+        if table is not None and uses_table:
+            checked: set[tuple[float, float]] = set()
+            for step in steps:
+                for action in step.actions:
+                    if isinstance(action, MoveTable) and (action.x_mm, action.y_mm) not in checked:
+                        checked.add((action.x_mm, action.y_mm))
+                        try:
+                            table.check_target(action.x_mm, action.y_mm)
+                        except MotionRejectedError as exc:
+                            problems.append(f"{step.name}: {exc}")
+        if len(problems) > 20:
+            problems = [*problems[:20], f"... and {len(problems) - 20} more"]
+        self._event("preflight", {"problems": problems, "steps": len(steps)})
+        if problems:
+            raise PreflightError(problems)
+
+    def _safe_point(self) -> None:
+        with self._lock:
+            if self._abort:
+                raise _AbortRequestedError()
+            if self._stop:
+                raise _StopRequestedError()
+            if self._pause:
+                self._set_state(RunnerState.PAUSED)
+                while self._pause and not (self._stop or self._abort):
+                    self._cond.wait(0.5)
+                if self._abort:
+                    raise _AbortRequestedError()
+                if self._stop:
+                    raise _StopRequestedError()
+                self._set_state(RunnerState.RUNNING)
+
+    def _run_step(self, sid: str, step: Step, ctx: PlanContext) -> None:
+        t0 = time.monotonic()
+        self.record.begin_step(sid, step.index, step.name, dict(step.meta))
+        self._event("step_started", {"index": step.index, "name": step.name})
+        data: dict[str, Any] = {}
+        try:
+            for frame_index_base, action in enumerate(step.actions):
+                del frame_index_base
+                if self._abort:
+                    raise _AbortRequestedError()
+                data.update(self._act(sid, step, action, ctx))
+        except BaseException as exc:
+            self.record.finish_step(sid, step.index, data={**data, "error": str(exc)}, state="failed")
+            if isinstance(exc, DeviceError) and step_moves(step):
+                self._reread_position("motion error")
+            raise
+        self.record.finish_step(sid, step.index, data=data)
+        with self._lock:
+            self._done += 1
+            self._t_steps.append(time.monotonic() - t0)
+        self._event(
+            "step_finished", {"index": step.index, "name": step.name, "progress": self.progress().to_json()}
+        )
+
+    def _act(self, sid: str, step: Step, action: Any, ctx: PlanContext) -> dict[str, Any]:
+        devices = self.devices
+        if isinstance(action, Compute):
+            return action.run(ctx)
+        assert devices is not None
+        if isinstance(action, SetSpeed):
+            require(devices.robot, "robot").set_speed(action.percent)
+        elif isinstance(action, MoveJoints):
+            require(devices.robot, "robot").move_joints(action.target_deg)
+        elif isinstance(action, MoveTable):
+            table = require(devices.table, "table")
+            timeout = getattr(self.params, "prompt_timeout_s", None)
+            pos = table.move_to(action.x_mm, action.y_mm, timeout_s=timeout)
+            return {} if action.overshoot else {"table_confirmed_mm": [pos.x_mm, pos.y_mm]}
+        elif isinstance(action, Settle):
+            with self._lock:
+                self._cond.wait_for(lambda: self._abort, timeout=action.seconds)
+            if self._abort:
+                raise _AbortRequestedError()
+        elif isinstance(action, Capture):
+            return self._capture(sid, step, action)
+        else:
+            raise PlanError(f"unknown action {action!r}")
+        return {}
+
+    def _capture(self, sid: str, step: Step, action: Capture) -> dict[str, Any]:
+        devices = self.devices
+        assert devices is not None
+        meta: dict[str, Any] = dict(action.meta)
+        if devices.robot is not None:
+            pos = devices.robot.where()
+            meta["joints_deg"] = list(pos.joints_deg)
+            meta["commanded_joints_deg"] = list(pos.commanded_joints_deg)
+        if devices.table is not None:
+            with contextlib.suppress(DeviceError):
+                p = devices.table.position()
+                meta["table_mm"] = [p.x_mm, p.y_mm]
+        # frame indices of a step's n-th attempt start at n x FRAMES_PER_ATTEMPT (a resumed step never
+        # overwrites or deletes what an interrupted attempt captured)
+        earlier = self.record.captures(sid, step_index=step.index)
+        first = (
+            (max(c.frame_index for c in earlier) // FRAMES_PER_ATTEMPT + 1) * FRAMES_PER_ATTEMPT
+            if earlier
+            else 0
+        )
+        frames = devices.camera.grab_many(action.frames)
+        ids = []
+        params_doc = self.measure_params.model_dump(mode="json")
+        software = f"station {__version__}"
+        for fi, frame in enumerate(frames):
+            cap = self.record.save_capture(
+                sid,
+                step.index,
+                first + fi,
+                frame.image,
+                timestamp_s=frame.timestamp_s,
+                meta={**meta, "frame_id": frame.frame_id},
+            )
+            self._captures += 1
+            self._event(
+                "image_captured", {"capture_id": cap.id, "path": cap.path, "step": step.index, "frame": fi}
+            )
+            result = measure_file(Path(self.record.data_dir) / cap.path, self.measure_params).to_json()
+            result["file"] = cap.path
+            if self.scale_calibration is not None:
+                result.setdefault("diagnostics", {})["scale_calibration"] = self.scale_calibration
+            self.record.add_measurement(sid, cap.id, result, params=params_doc, software=software)
+            ok = bool(result.get("ok"))
+            self._measured_ok += ok
+            self._event(
+                "measurement",
+                {
+                    "capture_id": cap.id,
+                    "ok": ok,
+                    "center_px": result.get("center_px"),
+                    "center_mm": result.get("center_mm"),
+                    "error": result.get("error"),
+                    "code": result.get("code"),
+                },
+            )
+            ids.append(cap.id)
+        if self._captures >= EARLY_FAILURE_CAPTURES and self._measured_ok == 0:
+            raise SessionError(
+                f"none of the first {self._captures} captures could be measured (last: "
+                f"{result.get('error')}); check that the crossing is in view and in focus, the lighting, "
+                "and the measurement parameters, then start again"
+            )
+        return {"captures": ids}
+
+    def _return_to_reference(self) -> None:
+        devices = self.devices
+        reference = devices.reference_joints_deg if devices is not None else None
+        if devices is None or devices.robot is None or reference is None or "robot" not in self.plan.needs:
+            return
+        try:
+            devices.robot.check_move(reference)
+            devices.robot.move_joints(reference)
+            self._event("returned", {"joints_deg": list(reference)})
+        except DeviceError as exc:
+            self._event("warning", {"message": f"could not return to the reference pose: {exc}"})
+
+    # ------------------------------------------------------------------ states and events
+
+    def _set_state(self, state: RunnerState) -> None:
+        with self._lock:
+            if state is self._state:
+                return
+            was = self._state
+            self._state = state
+        if self._session_id is not None:
+            if state not in FINAL_STATES:
+                self.record.set_state(self._session_id, state)
+            self._event("state", {"state": str(state), "was": str(was)})
+
+    def _set_state_if_active(self, state: RunnerState | None) -> None:
+        if state is not None and self._state not in FINAL_STATES:
+            self._set_state(state)
+
+    def _event(self, kind: str, data: dict[str, Any]) -> None:
+        if self._session_id is None:
+            return
+        try:
+            event = self.record.add_event(self._session_id, kind, data)
+        except RecordError as exc:
+            log.error("event %s not recorded: %s", kind, exc)
+            return
+        for listener in list(self._listeners):
+            try:
+                listener(event)
+            except Exception:
+                log.exception("event listener failed")
+
+    def _on_prompt(self, event: PromptEvent) -> None:
+        p = event.prompt
+        if event.kind == "opened":
+            self._event(
+                "prompt_raised",
+                {"id": p.id, "kind": p.kind, "message": p.message, "fields": [f.__dict__ for f in p.fields]},
+            )
+            with self._lock:
+                if self._state in (RunnerState.RUNNING, RunnerState.PAUSING):
+                    self._resting_state = self._state
+                    self._set_state(RunnerState.AWAITING_OPERATOR)
+        else:
+            a = event.answer
+            self._event(
+                "prompt_answered",
+                {
+                    "id": p.id,
+                    "outcome": str(a.outcome) if a else None,
+                    "readings": dict(a.readings) if a else {},
+                    "by": a.by if a else "",
+                    "reason": a.reason if a else "",
+                },
+            )
+            with self._lock:
+                if self._state is RunnerState.AWAITING_OPERATOR:
+                    self._set_state(RunnerState.PAUSING if self._pause else RunnerState.RUNNING)
+
+
+def require(device: Any, name: str) -> Any:
+    if device is None:
+        raise SessionError(f"this step needs the {name}, which the station configuration does not have")
+    return device
+
+
+def step_moves(step: Step) -> bool:
+    return any(isinstance(a, MoveJoints | MoveTable) for a in step.actions)
+
+
+def camera_height_function(devices: StationDevices | None) -> Callable[[Sequence[float]], float] | None:
+    """Height of the camera's front above the artifact plane for given joints, from the robot's safety
+    settings (``table_z_mm``, ``camera_offset_mm``) and the nominal kinematics; ``None`` when unknown."""
+    if devices is None or devices.config.robot is None:
+        return None
+    safety = devices.config.robot.safety
+    if "table_z_mm" not in safety or "camera_offset_mm" not in safety:
+        return None
+    import numpy as np
+
+    from station.kinematics import Kinematics
+
+    kin = Kinematics()
+    offset = np.array([*safety["camera_offset_mm"], 1.0], dtype=np.float64)
+    z0 = float(safety["table_z_mm"])
+
+    def height(joints: Sequence[float]) -> float:
+        return float((kin.forward(joints) @ offset)[2]) - z0
+
+    return height
+
+
+def finite_or_none(v: float | None) -> float | None:
+    return None if v is None or not math.isfinite(v) else v
+
+
+def run_plan(
+    runner: SessionRunner, *, on_event: Callable[[EventRow], None] | None = None
+) -> tuple[RunnerState, SessionRow]:
+    """Run ``runner`` in this thread (listeners first); return the final state and the session row."""
+    if on_event is not None:
+        runner.subscribe(on_event)
+    state = runner.run()
+    assert runner.session_id is not None
+    return state, runner.record.get_session(runner.session_id)
+
+
+def iter_events(record: Record, session_id: str, after_id: int = 0) -> Iterable[EventRow]:
+    return record.events(session_id, after_id=after_id)

@@ -1,0 +1,234 @@
+"""Scripted sessions: one function that builds the station, runs a plan and returns its outcome.
+
+The CLI's ``station run`` and the example scripts use exactly this; the service (``api/``) uses the
+runner and the record directly, with the same building blocks::
+
+    from station.session import run_session
+    outcome = run_session("repeatability", sim=True, params={"cycles": 10})
+    print(outcome.state, outcome.results["rp_mm"])
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import threading
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from station import scale_calibration as scal
+from station.config import (
+    ConfigurationError,
+    StationConfig,
+    StationDevices,
+    build,
+    load_config,
+    open_sim_station,
+)
+from station.config import open_station as build_station
+from station.plans import PlanError, get_plan, parse_params
+from station.record import EventRow, Record, SessionRow
+from station.runner import SessionError, SessionRunner
+from station.vision import MeasureParams
+
+log = logging.getLogger(__name__)
+
+DEFAULT_DATA_DIR = "station-data"
+DATA_ENV = "STATION_DATA"
+
+
+@dataclass(frozen=True)
+class SessionOutcome:
+    """The ``station run --json`` object: ``{"id", "kind", "state", "results"}`` (and the error)."""
+
+    id: str
+    kind: str
+    state: str
+    results: dict[str, Any]
+    error: str | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "id": self.id,
+            "kind": self.kind,
+            "state": self.state,
+            "results": self.results,
+            "error": self.error,
+        }
+
+
+def data_dir_for(data: str | Path | None, config: StationConfig | None = None) -> Path:
+    """``--data``, else the configuration's ``data_dir``, else ``$STATION_DATA``, else ``./station-data``."""
+    if data is not None:
+        return Path(data)
+    if config is not None and config.data_dir is not None:
+        return config.data_dir
+    return Path(os.environ.get(DATA_ENV) or DEFAULT_DATA_DIR)
+
+
+def open_record(
+    data: str | Path | None = None, database: str | None = None, config: StationConfig | None = None
+) -> Record:
+    url = database or (config.database if config is not None else None)
+    return Record(data_dir_for(data, config), url)
+
+
+def measure_params_for(
+    kind: str,
+    base: Mapping[str, Any] | None,
+    assignments: Mapping[str, Any],
+    calibration: scal.ScaleCalibration | None,
+    source: str | Path | None = None,
+) -> tuple[MeasureParams, dict[str, Any] | None]:
+    """The session's measurement parameters: plan default (paper for a sweep), then the configuration's
+    or the source session's, then ``--set``; the scale calibration's groove width unless ``--set`` sets
+    one."""
+    values: dict[str, Any] = {"mode": "paper"} if kind == "sweep" else {}
+    values.update(base or {})
+    if calibration is not None and "groove_width_mm" not in {k.lower() for k in assignments}:
+        values["groove_width_mm"] = calibration.groove_width_mm
+    values.update(assignments)
+    try:
+        params = MeasureParams.model_validate(values)
+    except ValueError as exc:
+        raise PlanError(f"measurement parameters: {exc}") from exc
+    return params, calibration.record(source) if calibration is not None else None
+
+
+@contextlib.contextmanager
+def terminal_prompts(devices: StationDevices) -> Iterator[None]:
+    """Answer the manual table's prompts from this terminal, in a thread, while the block runs."""
+    if devices.table is None or devices.config.table is None or devices.config.table.prompts != "terminal":
+        yield
+        return
+    client = build("prompt_client", "terminal", broker=devices.broker)
+    done = threading.Event()
+
+    def loop() -> None:
+        while not done.is_set():
+            try:
+                client.answer_one(timeout=0.5)
+            except EOFError:
+                log.warning("terminal input ended: answer the table's prompts through the API")
+                return
+
+    thread = threading.Thread(target=loop, name="terminal-prompts", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        done.set()
+
+
+def run_session(
+    kind: str | None = None,
+    *,
+    sim: bool | Mapping[str, Any] = False,
+    config: str | Path | StationConfig | None = None,
+    params: Mapping[str, Any] | None = None,
+    assignments: Mapping[str, Any] | None = None,
+    data: str | Path | None = None,
+    database: str | None = None,
+    resume: str | None = None,
+    jobs: int = 1,
+    on_event: Callable[[EventRow], None] | None = None,
+    on_runner: Callable[[SessionRunner], None] | None = None,
+) -> SessionOutcome:
+    """Run a session of ``kind`` (or ``resume`` one) and return its outcome.
+
+    ``sim``: the simulated station (``True``, or a mapping of ``build_sim_station`` options);
+    ``config``: a station configuration file or model; offline plans (sweep, reanalyse) need neither.
+    ``params``: the plan's parameters; ``assignments``: measurement parameters (``--set``).
+    ``on_runner`` gets the runner before it runs (to pause, stop or abort it from another thread).
+    """
+    cfg = config if isinstance(config, StationConfig) or config is None else load_config(config)
+    record = open_record(data, database, cfg)
+    try:
+        previous: SessionRow | None = None
+        if resume is not None:
+            previous = record.get_session(resume)
+            if previous.state == "succeeded":
+                raise SessionError(f"session {previous.id} succeeded; there is nothing to resume")
+            kind = previous.kind
+        if kind is None:
+            raise PlanError("give a session kind (validation, repeatability, sweep, reanalyse) or resume")
+        plan = get_plan(kind)
+        plan_values = dict(previous.params.get("plan", {})) if previous is not None else dict(params or {})
+        plan_params = parse_params(plan, plan_values)
+        if previous is None and plan.needs and not sim and cfg is None:
+            raise ConfigurationError(f"a {kind} session drives hardware: give --sim or --config FILE")
+        if previous is not None and plan.needs and not sim and cfg is None:
+            sim = previous.config.get("name") == "sim"
+            if not sim:
+                raise ConfigurationError(f"give --config FILE to resume {previous.id} on its station")
+        calibration, cal_source = _calibration(record, cfg, kind)
+        if previous is not None:
+            measure = MeasureParams.model_validate(previous.params.get("measure", {}))
+            cal_doc = previous.params.get("scale_calibration")
+        else:
+            base = _measure_base(record, kind, plan_values, cfg)
+            measure, cal_doc = measure_params_for(
+                kind, base, dict(assignments or {}), calibration, cal_source
+            )
+        devices: StationDevices | None = None
+        if plan.needs:
+            devices = open_sim_station(**(dict(sim) if isinstance(sim, Mapping) else {})) if sim else None
+            if devices is None:
+                assert cfg is not None
+                devices = build_station(cfg)
+        try:
+            runner = SessionRunner(
+                record,
+                plan,
+                plan_params,
+                devices=devices,
+                measure_params=measure,
+                scale_calibration=cal_doc,
+                resume_session=previous,
+                jobs=jobs,
+                station=(devices.config.name if devices is not None else (cfg.name if cfg else "default")),
+            )
+            if on_event is not None:
+                runner.subscribe(on_event)
+            if on_runner is not None:
+                on_runner(runner)
+            with terminal_prompts(devices) if devices is not None else contextlib.nullcontext():
+                state = runner.run()
+        finally:
+            if devices is not None:
+                devices.close_owned()
+        assert runner.session_id is not None
+        row = record.get_session(runner.session_id)
+        if (
+            kind == "validation"
+            and state == "succeeded"
+            and row.results
+            and row.results.get("scale_calibration")
+        ):
+            cal = scal.ScaleCalibration.model_validate(row.results["scale_calibration"])
+            scal.save(cal, scal.station_file(record.data_dir))
+        return SessionOutcome(row.id, row.kind, row.state, row.results or {}, row.error)
+    finally:
+        record.close()
+
+
+def _calibration(
+    record: Record, cfg: StationConfig | None, kind: str
+) -> tuple[scal.ScaleCalibration | None, Path | None]:
+    if cfg is not None and cfg.scale_calibration is not None:
+        return scal.load(cfg.scale_calibration), cfg.scale_calibration
+    path = scal.station_file(record.data_dir)
+    if kind in ("validation", "repeatability") and path.exists():
+        return scal.load(path), path
+    return None, None
+
+
+def _measure_base(
+    record: Record, kind: str, plan_values: Mapping[str, Any], cfg: StationConfig | None
+) -> dict[str, Any]:
+    if kind == "reanalyse" and "session" in plan_values:
+        return dict(record.get_session(str(plan_values["session"])).params.get("measure", {}))
+    return dict(cfg.measure) if cfg is not None else {}

@@ -1,0 +1,204 @@
+"""``station run`` / ``sessions`` / ``report`` / ``export`` / ``import`` as a user runs them: real
+processes on the simulated station, a real SIGKILL between steps, and the resume."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from station.record import Record
+
+STATION = [sys.executable, "-m", "station.cli"]
+
+
+def station(*args: str, timeout: float = 300) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([*STATION, *args], capture_output=True, text=True, timeout=timeout, check=False)
+
+
+def last_json(out: str) -> Any:
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def test_run_repeatability_prints_the_contract_object(tmp_path: Path) -> None:
+    data = tmp_path / "data"
+    p = station(
+        "run",
+        "repeatability",
+        "--sim",
+        "--param",
+        "cycles=3",
+        "--param",
+        "warmup_cycles=0",
+        "--param",
+        "joints=[1, 6]",
+        "--data",
+        str(data),
+        "--json",
+    )
+    assert p.returncode == 0, p.stderr
+    doc = last_json(p.stdout)
+    assert set(doc) >= {"id", "kind", "state", "results"}
+    assert doc["kind"] == "repeatability"
+    assert doc["state"] == "succeeded"
+    assert set(doc["results"]["rp_mm"]) == {"J1", "J6"}
+    assert doc["results"]["n_cycles"] == 3
+    listed = station("sessions", "--json", "--data", str(data))
+    assert listed.returncode == 0, listed.stderr
+    sessions = json.loads(listed.stdout)
+    assert [s["id"] for s in sessions] == [doc["id"]]
+    assert sessions[0]["state"] == "succeeded"
+
+
+def test_run_validation_json_keys_and_report_export_import(tmp_path: Path) -> None:
+    data = tmp_path / "data"
+    p = station("run", "validation", "--sim", "--param", "steps_per_side=2", "--data", str(data), "--json")
+    assert p.returncode == 0, p.stderr
+    doc = last_json(p.stdout)
+    res = doc["results"]
+    for key in (
+        "mean_um",
+        "max_um",
+        "parallelogram_mean_um",
+        "parallelogram_max_um",
+        "scale",
+        "groove_width_mm",
+    ):
+        assert isinstance(res[key], float), key
+    for fit in ("rigid", "similarity", "affine"):
+        assert set(res[fit]) == {"mean_um", "max_um", "rms_um", "scale"}
+    assert (data / "scale-calibration.json").exists()  # the station's scale calibration, from this session
+
+    rep = station("report", doc["id"], "--data", str(data))
+    assert rep.returncode == 0, rep.stderr
+    html = Path(rep.stdout.split("report: ")[1].splitlines()[0])
+    assert html.exists()
+    assert doc["id"] in html.read_text(encoding="utf-8")
+
+    out = tmp_path / "export"
+    ex = station("export", doc["id"], str(out), "--data", str(data))
+    assert ex.returncode == 0, ex.stderr
+    other = tmp_path / "other"
+    folder = ex.stdout.strip()  # the folder written (inside OUT)
+    assert Path(folder).is_relative_to(out)
+    im = station("import", folder, "--data", str(other))
+    assert im.returncode == 0, im.stderr
+    assert im.stdout.strip() == doc["id"]
+    with Record(data) as a, Record(other) as b:
+        assert a.get_session(doc["id"]) == b.get_session(doc["id"])
+        ca, cb = a.captures(doc["id"]), b.captures(doc["id"])
+        assert [c.sha256 for c in ca] == [c.sha256 for c in cb]
+        assert [m.result for m in a.measurements(doc["id"])] == [m.result for m in b.measurements(doc["id"])]
+
+
+def test_reanalyse_reproduces_the_results_bit_for_bit(tmp_path: Path) -> None:
+    data = tmp_path / "data"
+    p = station("run", "validation", "--sim", "--param", "steps_per_side=2", "--data", str(data), "--json")
+    assert p.returncode == 0, p.stderr
+    original = last_json(p.stdout)
+    again = station(
+        "run",
+        "reanalyse",
+        "--param",
+        f"session={original['id']}",
+        "--data",
+        str(data),
+        "--json",
+        "--jobs",
+        "2",
+    )
+    assert again.returncode == 0, again.stderr
+    doc = last_json(again.stdout)
+    assert doc["results"]["source_session"] == original["id"]
+    redone = doc["results"]["validation"]
+    before = dict(original["results"])
+    # the only difference: which session the scale estimate came from
+    assert redone.pop("scale_calibration")["session_id"] == original["id"]
+    before.pop("scale_calibration")
+    assert redone == before
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["run"], "give a session kind"),
+        (["run", "repeatability", "--sim", "--param", "cycles=0"], "cycles"),
+        (["run", "repeatability", "--sim", "--param", "speed_pct=101"], "speed_pct"),
+        (["run", "repeatability"], "--sim or --config"),
+        (["run", "validation", "--sim", "--param", "nonsense"], "NAME=VALUE"),
+        (["run", "repeatability", "--config", "/nonexistent/station.toml"], "no such configuration file"),
+    ],
+)
+def test_usage_errors_exit_2_with_one_clear_line(tmp_path: Path, args: list[str], message: str) -> None:
+    p = station(*args, "--data", str(tmp_path / "data"))
+    assert p.returncode == 2, (p.returncode, p.stderr)
+    assert message in p.stderr
+    assert "Traceback" not in p.stderr
+
+
+def test_a_killed_session_is_interrupted_and_resumes(tmp_path: Path) -> None:
+    """SIGKILL between two steps (a real subprocess): the record stays consistent, the unfinished
+    session shows `interrupted`, and `station run --resume ID` completes it."""
+    data = tmp_path / "data"
+    proc = subprocess.Popen(
+        [
+            *STATION,
+            "run",
+            "repeatability",
+            "--sim",
+            "--param",
+            "cycles=12",
+            "--param",
+            "warmup_cycles=0",
+            "--param",
+            "joints=[2]",
+            "--data",
+            str(data),
+            "--json",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        deadline = time.monotonic() + 120
+        sid = None
+        while time.monotonic() < deadline:
+            if (data / "record.sqlite").exists():
+                with Record(data) as rec:
+                    rows = rec.list_sessions()
+                    if rows and sum(s.state == "done" for s in rec.steps(rows[0].id)) >= 4:
+                        sid = rows[0].id
+                        break
+            time.sleep(0.05)
+        assert sid is not None, "the session did not get going"
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        proc.communicate()
+    with Record(data) as rec:
+        before = rec.captures(sid)
+        assert rec.get_session(sid).state in ("running", "awaiting_operator")  # nobody could say otherwise
+        for cap in before:  # every capture that has a row has its complete, checked image
+            rec.load_image(cap)
+    listed = json.loads(station("sessions", "--json", "--data", str(data)).stdout)
+    assert listed[0]["state"] == "interrupted"
+    p = station("run", "--resume", sid, "--sim", "--data", str(data), "--json")
+    assert p.returncode == 0, p.stderr
+    doc = last_json(p.stdout)
+    assert doc["id"] == sid
+    assert doc["state"] == "succeeded"
+    assert doc["results"]["tests"]["J2"]["n_cycles"] == 12
+    with Record(data) as rec:
+        after = rec.captures(sid)
+        assert {c.id for c in before} <= {c.id for c in after}  # nothing captured before the kill was lost
+        assert any(c.meta.get("resumed") for c in after)  # the reference captured again

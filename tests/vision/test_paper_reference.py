@@ -1,0 +1,62 @@
+"""Paper mode is the seed's algorithm: its results on the benchmark images are pinned.
+
+``data/paper_reference.json`` holds paper mode's results on the four image sets ``make bench`` renders
+(random poses and the validation pattern, nominal and hard presets), computed on main before the
+speed work of issue 12. Any change to paper mode's code must reproduce them within 1e-9 px: a faster
+implementation may not move a single result.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from sim.imageset import render_random_set, render_validation_set
+from station.imageio import read_image
+from station.vision import MeasurementError, MeasureParams, measure
+
+REFERENCE = Path(__file__).parent / "data" / "paper_reference.json"
+TOL_PX = 1e-9
+
+
+def _reference() -> dict[str, Any]:
+    doc: dict[str, Any] = json.loads(REFERENCE.read_text())
+    return doc
+
+
+@pytest.fixture(scope="module")
+def bench_sets(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The benchmark's image sets, rendered exactly as ``make bench`` renders them."""
+    root = tmp_path_factory.mktemp("bench-sets")
+    for name, spec in _reference()["sets"].items():
+        if spec["kind"] == "random":
+            render_random_set(root / name, preset=spec["preset"], count=spec["count"], seed=spec["seed"])
+        else:
+            render_validation_set(root / name, preset=spec["preset"], seed=spec["seed"])
+    return root
+
+
+@pytest.mark.parametrize("set_name", list(_reference()["sets"]))
+def test_paper_mode_reproduces_reference(bench_sets: Path, set_name: str) -> None:
+    expected: dict[str, Any] = _reference()["results"][set_name]
+    params = MeasureParams(mode="paper")
+    files = sorted((bench_sets / set_name).glob("*.png"))
+    assert [f.name for f in files] == sorted(expected)
+    for f in files:
+        want = expected[f.name]
+        try:
+            m = measure(read_image(f), params)
+        except MeasurementError as exc:
+            assert "code" in want, f"{set_name}/{f.name}: reference measured it, now {exc.code}: {exc}"
+            assert exc.code == want["code"], f"{set_name}/{f.name}"
+            continue
+        assert "code" not in want, f"{set_name}/{f.name}: reference failed ({want['code']}), now measured"
+        np.testing.assert_allclose(m.center_px, want["center_px"], rtol=0, atol=TOL_PX, err_msg=f.name)
+        np.testing.assert_allclose(m.corners_px, want["corners_px"], rtol=0, atol=TOL_PX, err_msg=f.name)
+        np.testing.assert_allclose(m.lines, want["lines"], rtol=0, atol=TOL_PX, err_msg=f.name)
+        # mm at 100 px/mm: 1e-9 px is 1e-11 mm
+        np.testing.assert_allclose(m.center_mm, want["center_mm"], rtol=0, atol=1e-11, err_msg=f.name)
