@@ -76,6 +76,9 @@ class SimCamera:
         self._sensor = Roi(0, 0, w, h)
         self._roi = self._sensor
         self._next_slot = 0.0
+        self.before_grab: Callable[[], None] | None = None
+        """Called before each frame is rendered (a micrometer follower waits there for the world to
+        take the readings a person confirmed, as the real table has moved before the camera looks)."""
 
     # ------------------------------------------------------------------ Camera
 
@@ -101,6 +104,8 @@ class SimCamera:
     def grab(self, timeout_s: float = 2.0) -> Frame:
         if not self._open:
             raise DeviceConnectionError("the simulated camera is not open: call connect() first")
+        if self.before_grab is not None:
+            self.before_grab()
         with self._lock:
             if self._frame_rate_hz > 0:
                 now = self._clock()

@@ -15,7 +15,7 @@ import time
 from collections.abc import Callable
 
 from sim.world import INCH_MM, World
-from station.prompts import Prompt, PromptBroker, PromptError
+from station.prompts import Prompt, PromptBroker, PromptError, PromptEvent
 
 log = logging.getLogger(__name__)
 
@@ -107,6 +107,55 @@ class SimOperator:
             self.answered += 1
         except PromptError as exc:  # the prompt was withdrawn meanwhile: nothing to answer
             log.info("sim operator: prompt %s closed before the answer: %s", prompt.id, exc)
+
+
+class MicrometerFollower:
+    """With a person answering the table prompts (the service's page, ``--manual-prompts``), the simulated
+    world's micrometers follow what they confirm: the readings given, else those asked for, so that the
+    artifact really moves. Readings a prompt's validator refused never reach the world.
+
+    A broker's listeners run after the asker was woken, so ``sync`` (the sim camera's ``before_grab``)
+    waits until every prompt change so far has been applied: the camera never sees the old position.
+    """
+
+    def __init__(self, broker: PromptBroker, world: World, *, origin_in: tuple[float, float] = (0.0, 0.0)):
+        self._broker = broker
+        self._world = world
+        self._origin_in = origin_in
+        self._cond = threading.Condition()
+        self._seen = broker.revision
+        self.followed = 0
+        self._unsubscribe = broker.subscribe(self._on_event)
+
+    def _on_event(self, event: PromptEvent) -> None:
+        try:
+            answer = event.answer
+            names = {f.name for f in event.prompt.fields}
+            if (
+                event.kind == "closed"
+                and answer is not None
+                and answer.confirmed
+                and {X_FIELD, Y_FIELD} <= names
+            ):
+                asked = {f.name: f.requested for f in event.prompt.fields}
+                x_in = float(answer.readings.get(X_FIELD, asked[X_FIELD] or 0.0))
+                y_in = float(answer.readings.get(Y_FIELD, asked[Y_FIELD] or 0.0))
+                self._world.set_table_readings(
+                    (x_in - self._origin_in[0]) * INCH_MM, (y_in - self._origin_in[1]) * INCH_MM
+                )
+                self.followed += 1
+        finally:
+            with self._cond:
+                self._seen = max(self._seen, event.revision)
+                self._cond.notify_all()
+
+    def sync(self, timeout_s: float = 2.0) -> None:
+        """Wait (at most ``timeout_s``) until every prompt change so far has reached the world."""
+        with self._cond:
+            self._cond.wait_for(lambda: self._seen >= self._broker.revision, timeout_s)
+
+    def close(self) -> None:
+        self._unsubscribe()
 
 
 def start_sim_operator(

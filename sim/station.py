@@ -12,7 +12,7 @@ from typing import Any
 
 from sim.camera import SimCamera
 from sim.controller import ControllerTwin
-from sim.operator import SimOperator
+from sim.operator import MicrometerFollower, SimOperator
 from sim.world import World, WorldSpec
 from station.config import CameraConfig, RobotConfig, StationConfig, StationDevices, TableConfig, build
 from station.devices import Robot, XYTable
@@ -52,6 +52,7 @@ class SimStation:
         self.operator = SimOperator(
             self.broker, self.world, origin_in=table_origin_in, delay_s=operator_delay_s
         ).start()
+        self.follower: MicrometerFollower | None = None
 
     @property
     def port(self) -> str:
@@ -59,6 +60,8 @@ class SimStation:
         return self.twin.port
 
     def close(self) -> None:
+        if self.follower is not None:
+            self.follower.close()
         self.operator.close()
         self.camera.close()
         self.twin.close()
@@ -113,6 +116,9 @@ def build_sim_station(
     try:
         if not operator:
             sim.operator.close()
+            follower = MicrometerFollower(sim.broker, sim.world, origin_in=SIM_TABLE_ORIGIN_IN)
+            sim.camera.before_grab = follower.sync
+            sim.follower = follower
         safety = sim_safety(sim.world)
         reference = tuple(float(a) for a in sim.world.spec.reference_joints_deg)
         config = StationConfig(

@@ -108,6 +108,15 @@ class TableConfig(DeviceConfig):
     prompts: Literal["terminal", "api"] = "terminal"
 
 
+class ApiConfig(BaseModel):
+    """The service (``station serve``): its access token and whether reads need it on loopback."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    token: str | None = Field(None, min_length=16, description="the API token (else $STATION_API_TOKEN)")
+    open_reads: bool = Field(True, description="GET endpoints without a token while bound to loopback")
+
+
 class StationConfig(BaseModel):
     """A station configuration file (TOML), e.g.::
 
@@ -145,6 +154,7 @@ class StationConfig(BaseModel):
     table: TableConfig | None = None
     measure: dict[str, Any] = Field(default_factory=dict, description="measurement parameters (--set)")
     scale_calibration: Path | None = Field(None, description="a scale calibration JSON file")
+    api: ApiConfig = Field(default_factory=ApiConfig, description="the service's access control")
 
     def snapshot(self) -> dict[str, Any]:
         """JSON-ready copy for the record, with anything that looks like a secret redacted."""

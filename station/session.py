@@ -164,15 +164,11 @@ def run_session(
             sim = previous.config.get("name") == "sim"
             if not sim:
                 raise ConfigurationError(f"give --config FILE to resume {previous.id} on its station")
-        calibration, cal_source = _calibration(record, cfg, kind)
         if previous is not None:
             measure = MeasureParams.model_validate(previous.params.get("measure", {}))
             cal_doc = previous.params.get("scale_calibration")
         else:
-            base = _measure_base(record, kind, plan_values, cfg)
-            measure, cal_doc = measure_params_for(
-                kind, base, dict(assignments or {}), calibration, cal_source
-            )
+            measure, cal_doc = session_measure_params(record, kind, plan_values, cfg, assignments)
         devices: StationDevices | None = None
         if plan.needs:
             devices = open_sim_station(**(dict(sim) if isinstance(sim, Mapping) else {})) if sim else None
@@ -196,23 +192,44 @@ def run_session(
             if on_runner is not None:
                 on_runner(runner)
             with terminal_prompts(devices) if devices is not None else contextlib.nullcontext():
-                state = runner.run()
+                runner.run()
         finally:
             if devices is not None:
                 devices.close_owned()
         assert runner.session_id is not None
         row = record.get_session(runner.session_id)
-        if (
-            kind == "validation"
-            and state == "succeeded"
-            and row.results
-            and row.results.get("scale_calibration")
-        ):
-            cal = scal.ScaleCalibration.model_validate(row.results["scale_calibration"])
-            scal.save(cal, scal.station_file(record.data_dir))
+        save_scale_calibration(record, row)
         return SessionOutcome(row.id, row.kind, row.state, row.results or {}, row.error)
     finally:
         record.close()
+
+
+def session_measure_params(
+    record: Record,
+    kind: str,
+    plan_values: Mapping[str, Any],
+    cfg: StationConfig | None,
+    assignments: Mapping[str, Any] | None = None,
+) -> tuple[MeasureParams, dict[str, Any] | None]:
+    """A new session's measurement parameters and scale calibration record (``station run`` and the
+    service alike): the station's scale calibration, the configuration's or source session's
+    parameters, then ``assignments`` (``--set``)."""
+    calibration, cal_source = _calibration(record, cfg, kind)
+    base = _measure_base(record, kind, plan_values, cfg)
+    return measure_params_for(kind, base, dict(assignments or {}), calibration, cal_source)
+
+
+def save_scale_calibration(record: Record, row: SessionRow) -> None:
+    """After a validation that succeeded: its groove-width estimate becomes the station's scale
+    calibration (``DATA/scale-calibration.json``), used by later sessions."""
+    if (
+        row.kind == "validation"
+        and row.state == "succeeded"
+        and row.results
+        and row.results.get("scale_calibration")
+    ):
+        cal = scal.ScaleCalibration.model_validate(row.results["scale_calibration"])
+        scal.save(cal, scal.station_file(record.data_dir))
 
 
 def _calibration(

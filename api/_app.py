@@ -1,0 +1,57 @@
+"""The application factory: routers over one :class:`StationService` kept on ``app.state``."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from collections.abc import AsyncIterator
+
+from fastapi import FastAPI
+from fastapi.staticfiles import StaticFiles
+
+from api import _errors
+from api._auth import Access
+from api._page import STATIC
+from api._page import router as page_router
+from api._routes_events import router as events_router
+from api._routes_prompt import router as prompt_router
+from api._routes_sessions import router as sessions_router
+from api._routes_station import router as station_router
+from api._service import StationService
+from station import __version__
+
+log = logging.getLogger(__name__)
+
+
+def create_app(service: StationService, access: Access, *, close_service: bool = True) -> FastAPI:
+    """The FastAPI app serving ``service``; ``access`` holds the token and whether reads are open.
+    With ``close_service`` the service is closed (session stopped, devices closed) at shutdown."""
+
+    @contextlib.asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        try:
+            yield
+        finally:
+            app.state.stopping.set()
+            if close_service:
+                await asyncio.get_running_loop().run_in_executor(None, service.close)
+
+    app = FastAPI(
+        title="Robot calibration station",
+        version=__version__,
+        description="Sessions, measurements, operator prompts and live events of the station. Mutations and "
+        "event streams need the station's token (Bearer, or the cookie the login URL sets).",
+        lifespan=lifespan,
+        openapi_url="/api/v1/openapi.json",
+        docs_url="/api/v1/docs",
+        redoc_url=None,
+    )
+    app.state.service = service
+    app.state.access = access
+    app.state.stopping = asyncio.Event()
+    _errors.install(app)
+    for router in (station_router, sessions_router, prompt_router, events_router, page_router):
+        app.include_router(router)
+    app.mount("/static", StaticFiles(directory=STATIC), name="static")
+    return app

@@ -1,0 +1,134 @@
+"""Errors as RFC 9457 problem details, mapped in one place from the project's exception types.
+
+Every error response is ``application/problem+json``: ``{"type", "title", "status", "detail", "code"}``
+(``code``: the exception's stable ``code`` where it has one, else a name derived from its class).
+The table below is the only place where an exception becomes an HTTP status.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from starlette.exceptions import HTTPException as StarletteHTTPException
+
+from api._service import ConflictError, ImportArchiveError, NotAvailableError
+from station.config import ConfigurationError
+from station.imageio import ImageFileError
+from station.plans import PlanError
+from station.prompts import InvalidAnswerError, PromptBusyError, PromptError, UnknownPromptError
+from station.record import RecordError, RecordNotFoundError, SessionLockError
+from station.runner import PreflightError, SessionError
+
+log = logging.getLogger(__name__)
+
+PROBLEM_JSON = "application/problem+json"
+PROBLEM_BASE = "https://station.invalid/problems/"
+
+#: Exception type -> (HTTP status, code). The first matching entry wins (most specific first).
+STATUS_OF: tuple[tuple[type[Exception], int, str], ...] = (
+    (RecordNotFoundError, 404, "session_not_found"),
+    (SessionLockError, 409, "station_busy"),
+    (ImportArchiveError, 422, "bad_archive"),
+    (PreflightError, 409, "preflight_failed"),
+    (ConflictError, 409, "conflict"),
+    (NotAvailableError, 409, "not_available"),
+    (SessionError, 409, "session_error"),
+    (UnknownPromptError, 409, "prompt_not_open"),
+    (InvalidAnswerError, 422, "invalid_readings"),
+    (PromptBusyError, 409, "prompt_busy"),
+    (PromptError, 409, "prompt_error"),
+    (ImageFileError, 422, "bad_image"),
+    (PlanError, 422, "invalid_parameters"),
+    (ConfigurationError, 422, "configuration_error"),
+    (RecordError, 422, "record_error"),
+)
+
+TITLES = {
+    400: "Bad request",
+    401: "Unauthorized",
+    403: "Forbidden",
+    404: "Not found",
+    405: "Method not allowed",
+    409: "Conflict",
+    413: "Content too large",
+    415: "Unsupported media type",
+    422: "Unprocessable content",
+    500: "Internal server error",
+}
+
+
+def problem(status: int, detail: str, code: str, **extra: Any) -> JSONResponse:
+    """A problem-details response."""
+    body = {
+        "type": PROBLEM_BASE + code,
+        "title": TITLES.get(status, "Error"),
+        "status": status,
+        "detail": detail,
+        "code": code,
+        **extra,
+    }
+    headers = {"WWW-Authenticate": 'Bearer realm="station"'} if status == 401 else None
+    return JSONResponse(body, status_code=status, media_type=PROBLEM_JSON, headers=headers)
+
+
+def status_of(exc: BaseException) -> tuple[int, str]:
+    for kind, status, code in STATUS_OF:
+        if isinstance(exc, kind):
+            return status, code
+    return 500, "internal_error"
+
+
+class ApiError(Exception):
+    """An HTTP-level refusal raised by the routers themselves (401, 413, 415 ...)."""
+
+    def __init__(self, status: int, detail: str, code: str) -> None:
+        super().__init__(detail)
+        self.status = status
+        self.detail = detail
+        self.code = code
+
+
+def install(app: FastAPI) -> None:
+    """Register the mapping on ``app``: domain exceptions, request validation, HTTP errors."""
+
+    async def domain(request: Request, exc: Exception) -> JSONResponse:
+        status, code = status_of(exc)
+        if isinstance(exc, ImageFileError):
+            return problem(status, exc.reason, "bad_image")
+        extra: dict[str, Any] = {}
+        if isinstance(exc, PreflightError):
+            extra["problems"] = exc.problems
+        return problem(status, str(exc), code, **extra)
+
+    async def api_error(request: Request, exc: Exception) -> JSONResponse:
+        assert isinstance(exc, ApiError)
+        return problem(exc.status, exc.detail, exc.code)
+
+    async def validation(request: Request, exc: Exception) -> JSONResponse:
+        assert isinstance(exc, RequestValidationError)
+        errors = exc.errors()
+        parts = []
+        for e in errors:
+            where = ".".join(str(x) for x in e.get("loc", ()) if x != "body") or "(request)"
+            parts.append(f"{where}: {e.get('msg')}")
+        return problem(422, "; ".join(parts) or "invalid request", "invalid_request")
+
+    async def http_error(request: Request, exc: Exception) -> JSONResponse:
+        assert isinstance(exc, StarletteHTTPException)
+        code = {404: "not_found", 405: "method_not_allowed"}.get(exc.status_code, f"http_{exc.status_code}")
+        return problem(exc.status_code, str(exc.detail), code)
+
+    async def unexpected(request: Request, exc: Exception) -> JSONResponse:
+        log.error("unexpected error on %s %s: %s", request.method, request.url.path, exc, exc_info=exc)
+        return problem(500, f"unexpected {type(exc).__name__}: {exc}", "internal_error")
+
+    for kind, _status, _code in STATUS_OF:
+        app.add_exception_handler(kind, domain)
+    app.add_exception_handler(ApiError, api_error)
+    app.add_exception_handler(RequestValidationError, validation)
+    app.add_exception_handler(StarletteHTTPException, http_error)
+    app.add_exception_handler(Exception, unexpected)

@@ -1,0 +1,177 @@
+"""The API's bodies: pydantic models, the same objects the CLI prints with ``--json``.
+
+``SessionModel`` is ``station sessions --json``'s object (``session_json``) plus the live progress;
+``OutcomeModel`` is ``station run --json``'s; ``MeasureResult`` is a ``station measure --json`` line.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from api._service import SessionView
+from station.commands.sessions import session_json
+from station.prompts import Prompt, PromptAnswer
+from station.record import EventRow
+from station.runner import RunnerState
+
+
+class Problem(BaseModel):
+    """RFC 9457 problem details."""
+
+    type: str
+    title: str
+    status: int
+    detail: str
+    code: str
+
+
+class Health(BaseModel):
+    status: Literal["ok"] = "ok"
+    version: str
+
+
+class ProgressModel(BaseModel):
+    done: int = Field(ge=0)
+    total: int = Field(ge=0)
+    eta_s: float | None = None
+
+
+class SessionModel(BaseModel):
+    """A session: ``station sessions --json``'s object and its progress."""
+
+    id: str
+    kind: str
+    state: RunnerState
+    created_at: str
+    updated_at: str
+    station: str
+    parent_id: str | None
+    error: str | None
+    params: dict[str, Any]
+    results: dict[str, Any]
+    progress: ProgressModel
+
+    @classmethod
+    def of(cls, view: SessionView) -> SessionModel:
+        doc = session_json(view.row)
+        doc["results"] = doc["results"] or {}
+        return cls.model_validate({**doc, "progress": view.progress.to_json()})
+
+
+class SessionList(BaseModel):
+    items: list[SessionModel]
+    total: int
+
+
+class SessionCreate(BaseModel):
+    """``{"kind": ..., "params": {...}, "set": {...}}``: a plan and its parameters (``--param``), and
+    measurement parameters (``--set``)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    kind: str = Field(description="validation, repeatability, sweep or reanalyse")
+    params: dict[str, Any] = Field(default_factory=dict, description="the plan's parameters")
+    set: dict[str, Any] = Field(default_factory=dict, description="measurement parameters, as --set")
+
+
+class ActionRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    action: Literal["pause", "resume", "stop", "abort"]
+
+
+class OutcomeModel(BaseModel):
+    """``station run --json``: ``{"id", "kind", "state", "results", "error"}``."""
+
+    id: str
+    kind: str
+    state: RunnerState
+    results: dict[str, Any]
+    error: str | None
+
+
+class PromptFieldModel(BaseModel):
+    name: str
+    label: str
+    unit: str
+    requested: float | None
+
+
+class PromptModel(BaseModel):
+    id: str
+    kind: str
+    message: str
+    fields: list[PromptFieldModel]
+    source: str
+    created_s: float
+    details: dict[str, str | float]
+
+    @classmethod
+    def of(cls, p: Prompt) -> PromptModel:
+        return cls(
+            id=p.id,
+            kind=p.kind,
+            message=p.message,
+            fields=[PromptFieldModel(**f.__dict__) for f in p.fields],
+            source=p.source,
+            created_s=p.created_s,
+            details=dict(p.details),
+        )
+
+
+class ConfirmRequest(BaseModel):
+    """The readings actually set, in the prompt's own field names and units (e.g. ``x_in``)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    readings: dict[str, float] | None = None
+
+
+class CancelRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    reason: str = Field("", max_length=500)
+
+
+class AnswerModel(BaseModel):
+    prompt_id: str
+    outcome: str
+    readings: dict[str, float]
+    by: str
+    reason: str
+
+    @classmethod
+    def of(cls, a: PromptAnswer) -> AnswerModel:
+        return cls(
+            prompt_id=a.prompt.id, outcome=str(a.outcome), readings=dict(a.readings), by=a.by, reason=a.reason
+        )
+
+
+class EventModel(BaseModel):
+    id: int
+    session_id: str
+    seq: int
+    time: str
+    type: str
+    data: dict[str, Any]
+
+    @classmethod
+    def of(cls, e: EventRow) -> EventModel:
+        return cls(
+            id=e.id, session_id=e.session_id, seq=e.seq, time=e.time.isoformat(), type=e.type, data=e.data
+        )
+
+
+class StationModel(BaseModel):
+    name: str
+    sim: bool
+    manual_prompts: bool
+    config: dict[str, Any] | None
+    devices: dict[str, Any]
+    data_dir: str
+    record: str
+    session: dict[str, Any] | None
+    lock: dict[str, Any] | None
+    plans: list[str]

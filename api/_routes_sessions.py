@@ -1,0 +1,173 @@
+"""``/api/v1/sessions``: create and start, list, read, control; results, figures, report, export, import."""
+
+from __future__ import annotations
+
+import csv
+import io
+import re
+from typing import Any, Literal
+
+from fastapi import APIRouter, Depends, Query, Request
+from fastapi.concurrency import run_in_threadpool
+from fastapi.responses import FileResponse, Response
+
+from api._auth import read_access, require_token
+from api._deps import service_of
+from api._errors import ApiError
+from api._models import ActionRequest, OutcomeModel, SessionCreate, SessionList, SessionModel
+from api._routes_station import read_body
+
+router = APIRouter(prefix="/api/v1/sessions")
+
+MAX_IMPORT_BYTES = 512 * 1024 * 1024
+_FIGURE_NAME = re.compile(r"[A-Za-z0-9_.-]{1,100}")
+
+
+@router.post("", status_code=201, response_model=SessionModel, dependencies=[Depends(require_token)])
+async def create(request: Request, body: SessionCreate) -> SessionModel:
+    """Create a session and start it (409 while another one runs)."""
+    service = service_of(request)
+    view = await run_in_threadpool(service.create_session, body.kind, body.params, body.set)
+    return SessionModel.of(view)
+
+
+@router.get("", response_model=SessionList, dependencies=[Depends(read_access)])
+async def list_sessions(
+    request: Request, limit: int = Query(50, ge=1, le=1000), offset: int = Query(0, ge=0, le=10**9)
+) -> SessionList:
+    views, total = await run_in_threadpool(service_of(request).list_sessions, limit=limit, offset=offset)
+    return SessionList(items=[SessionModel.of(v) for v in views], total=total)
+
+
+@router.post("/import", status_code=201, response_model=SessionModel, dependencies=[Depends(require_token)])
+async def import_session(request: Request) -> SessionModel:
+    """Import a session from a zip written by ``/export.zip`` (or a zipped ``station export`` folder)."""
+    data = await read_body(request, MAX_IMPORT_BYTES)
+    service = service_of(request)
+    row = await run_in_threadpool(service.import_zip, data, max_bytes=MAX_IMPORT_BYTES * 4)
+    return SessionModel.of(await run_in_threadpool(service.get_session, row.id))
+
+
+@router.get("/{session_id}", response_model=SessionModel, dependencies=[Depends(read_access)])
+async def get(request: Request, session_id: str) -> SessionModel:
+    return SessionModel.of(await run_in_threadpool(service_of(request).get_session, session_id))
+
+
+@router.post(
+    "/{session_id}/actions",
+    status_code=201,
+    response_model=SessionModel,
+    dependencies=[Depends(require_token)],
+)
+async def act(request: Request, session_id: str, body: ActionRequest) -> SessionModel:
+    """pause, resume (also continues an interrupted session), stop, abort; 409 when the state forbids it."""
+    return SessionModel.of(await run_in_threadpool(service_of(request).act, session_id, body.action))
+
+
+@router.get("/{session_id}/results", response_model=None, dependencies=[Depends(read_access)])
+async def results(request: Request, session_id: str, format: Literal["json", "csv"] = "json") -> Any:
+    """``station run --json``'s object; ``?format=csv``: the per-position (validation) or per-cycle
+    (repeatability) table."""
+    doc = await run_in_threadpool(service_of(request).results, session_id)
+    if format == "json":
+        return OutcomeModel.model_validate(doc)
+    rows = table_rows(doc["kind"], doc["results"])
+    if not rows:
+        raise ApiError(
+            409, f"session {doc['id']} ({doc['kind']}, {doc['state']}) has no table of results", "no_table"
+        )
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    return Response(
+        buf.getvalue(),
+        media_type="text/csv",
+        headers={"Content-Disposition": f'attachment; filename="{doc["id"]}-{doc["kind"]}.csv"'},
+    )
+
+
+def table_rows(kind: str, results: dict[str, Any]) -> list[dict[str, Any]]:
+    """The per-position rows of a validation, the per-cycle rows of a repeatability session."""
+    if kind == "validation":
+        return [_flat(p) for p in results.get("positions", [])]
+    if kind == "repeatability":
+        out = []
+        for test, body in (results.get("tests") or {}).items():
+            points = body.get("points_mm") or body.get("points") or []
+            cycles = body.get("cycles") or list(range(len(points)))
+            for cycle, point in zip(cycles, points, strict=False):
+                out.append(
+                    {
+                        "test": test,
+                        "cycle": cycle,
+                        **{f"{a}_mm": v for a, v in zip("xyz", point, strict=False)},
+                    }
+                )
+        return out
+    return []
+
+
+def _flat(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for k, v in d.items():
+        if isinstance(v, dict):
+            out.update(_flat(v, f"{prefix}{k}."))
+        elif isinstance(v, list | tuple) and all(not isinstance(x, dict | list) for x in v):
+            for i, x in enumerate(v):
+                out[f"{prefix}{k}[{i}]"] = x
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
+@router.get("/{session_id}/figures/{name}", dependencies=[Depends(read_access)], response_class=FileResponse)
+async def figure(request: Request, session_id: str, name: str) -> FileResponse:
+    """A figure of the session's report (``.png`` or ``.svg``), written on first request."""
+    if not _FIGURE_NAME.fullmatch(name) or not name.endswith((".png", ".svg")):
+        raise ApiError(404, f"no figure {name!r}: names end in .png or .svg", "not_found")
+    folder = await run_in_threadpool(service_of(request).report_dir, session_id)
+    path = folder / name
+    if not path.is_file():
+        names = sorted(p.name for p in folder.iterdir() if p.suffix in (".png", ".svg"))
+        raise ApiError(
+            404, f"no figure {name!r} for this session; it has: {', '.join(names) or 'none'}", "not_found"
+        )
+    return FileResponse(path)
+
+
+@router.get("/{session_id}/figures", dependencies=[Depends(read_access)])
+async def figures(request: Request, session_id: str) -> dict[str, list[str]]:
+    folder = await run_in_threadpool(service_of(request).report_dir, session_id)
+    return {"figures": sorted(p.name for p in folder.iterdir() if p.suffix in (".png", ".svg"))}
+
+
+@router.get("/{session_id}/report.html", dependencies=[Depends(read_access)], response_class=FileResponse)
+async def report(request: Request, session_id: str) -> FileResponse:
+    folder = await run_in_threadpool(service_of(request).report_dir, session_id)
+    pages = sorted(folder.glob("*.html"))
+    if not pages:
+        raise ApiError(409, "the report has no HTML page", "no_report")
+    return FileResponse(pages[0], media_type="text/html")
+
+
+@router.get("/{session_id}/export.zip", dependencies=[Depends(read_access)])
+async def export(request: Request, session_id: str) -> Response:
+    data = await run_in_threadpool(service_of(request).export_zip, session_id)
+    return Response(
+        data,
+        media_type="application/zip",
+        headers={"Content-Disposition": f'attachment; filename="{session_id}.zip"'},
+    )
+
+
+@router.get(
+    "/{session_id}/latest.png",
+    dependencies=[Depends(read_access)],
+    response_class=Response,
+    responses={200: {"content": {"image/png": {}}}},
+)
+async def latest(request: Request, session_id: str, overlay: bool = True) -> Response:
+    """The session's latest capture with its measurement drawn (the live view while it runs)."""
+    png = await run_in_threadpool(service_of(request).latest_capture_png, session_id, overlay=overlay)
+    return Response(png, media_type="image/png", headers={"Cache-Control": "no-store"})

@@ -1,0 +1,114 @@
+"""``/api/v1/health``, ``/api/v1/station``, ``/api/v1/camera/snapshot.png``, ``/api/v1/measure``."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi import APIRouter, Depends, Request
+from fastapi.concurrency import run_in_threadpool
+from fastapi.responses import Response
+
+from api._auth import read_access, require_token
+from api._deps import service_of
+from api._errors import ApiError
+from api._models import Health, StationModel
+from station import __version__
+from station.imageio import DEFAULT_MAX_BYTES, ImageLimits
+from station.vision import MeasureParams
+
+router = APIRouter(prefix="/api/v1")
+
+IMAGE_TYPES = ("image/png", "image/tiff", "image/jpeg")
+MAX_UPLOAD_BYTES = DEFAULT_MAX_BYTES
+
+
+@router.get("/health", response_model=Health, summary="liveness (no token)")
+async def health() -> Health:
+    return Health(version=__version__)
+
+
+@router.get("/station", response_model=StationModel, dependencies=[Depends(read_access)])
+async def station(request: Request) -> StationModel:
+    """Configuration (secrets redacted), devices' identities and states from the cached snapshot."""
+    return StationModel.model_validate(service_of(request).station())
+
+
+@router.get(
+    "/camera/snapshot.png",
+    dependencies=[Depends(read_access)],
+    response_class=Response,
+    responses={200: {"content": {"image/png": {}}}},
+)
+async def snapshot(request: Request, overlay: bool = False) -> Response:
+    """A frame from the camera (optionally with the measurement drawn on it); 409 while a session owns
+    the camera: its latest capture is at ``/api/v1/sessions/{id}/latest.png`` then."""
+    png = await run_in_threadpool(service_of(request).snapshot_png, overlay=overlay)
+    return Response(png, media_type="image/png", headers={"Cache-Control": "no-store"})
+
+
+async def read_body(request: Request, max_bytes: int) -> bytes:
+    """The request body, refused with 413 past ``max_bytes`` (before reading it when declared)."""
+    declared = request.headers.get("content-length")
+    if declared is not None and declared.isdigit() and int(declared) > max_bytes:
+        raise ApiError(
+            413, f"the body is {int(declared)} bytes, over the {max_bytes} byte limit", "too_large"
+        )
+    chunks: list[bytes] = []
+    size = 0
+    async for chunk in request.stream():
+        size += len(chunk)
+        if size > max_bytes:
+            raise ApiError(413, f"the body is over the {max_bytes} byte limit", "too_large")
+        chunks.append(chunk)
+    return b"".join(chunks)
+
+
+def measure_query(request: Request) -> dict[str, Any]:
+    """``mode`` and any ``--set`` name (case-insensitive) from the query string."""
+    names = {n.lower(): n for n in MeasureParams.model_fields}
+    out: dict[str, Any] = {}
+    for key, value in request.query_params.multi_items():
+        name = names.get(key.lower())
+        if name is None:
+            raise ApiError(
+                422,
+                f"unknown measurement parameter {key!r}; known: {', '.join(sorted(names))}",
+                "invalid_parameters",
+            )
+        out[name] = value
+    return out
+
+
+@router.post(
+    "/measure",
+    dependencies=[Depends(require_token)],
+    openapi_extra={
+        "requestBody": {
+            "required": True,
+            "content": {t: {"schema": {"type": "string", "format": "binary"}} for t in IMAGE_TYPES},
+        },
+        "parameters": [
+            {
+                "name": "mode",
+                "in": "query",
+                "required": False,
+                "schema": {"type": "string", "enum": ["precise", "paper"]},
+            }
+        ],
+    },
+    responses={413: {"description": "over the size caps"}, 415: {"description": "not PNG, TIFF or JPEG"}},
+)
+async def measure(request: Request) -> dict[str, Any]:
+    """The same object as ``station measure --json`` (``ok`` true or false): the image is the raw body."""
+    ctype = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    if ctype not in IMAGE_TYPES:
+        raise ApiError(
+            415,
+            f"content type {ctype or '(none)'!r} is not accepted; send {', '.join(IMAGE_TYPES)}",
+            "unsupported_type",
+        )
+    params = measure_query(request)
+    data = await read_body(request, MAX_UPLOAD_BYTES)
+    service = service_of(request)
+    limits = ImageLimits(max_bytes=MAX_UPLOAD_BYTES)
+    return await run_in_threadpool(service.measure_image, data, params, limits=limits)

@@ -1,0 +1,115 @@
+"""Fixtures of the service's tests: a real uvicorn server on 127.0.0.1 (port chosen by the kernel) over a
+StationService on the simulated station, and httpx clients for it.
+
+A real server, not Starlette's TestClient (which warns about httpx, and the suite's warnings are
+errors); it is also what the browser and the load tests talk to.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+import uvicorn
+
+from api import Access, ServiceSettings, StationService, create_app
+
+TOKEN = "test-token-0123456789abcdef-ABCDEF"
+AUTH = {"Authorization": f"Bearer {TOKEN}"}
+FINAL = {"stopped", "aborted", "failed", "succeeded", "interrupted"}
+
+
+@dataclass
+class Served:
+    service: StationService
+    server: uvicorn.Server
+    thread: threading.Thread
+    base: str
+
+    def client(
+        self, *, token: bool = True, headers: dict[str, str] | None = None, **kwargs: Any
+    ) -> httpx.Client:
+        merged = {**(AUTH if token else {}), **(headers or {})}
+        return httpx.Client(base_url=self.base, headers=merged, timeout=30.0, **kwargs)
+
+    def stop(self) -> None:
+        self.server.should_exit = True
+        self.thread.join(30)
+
+
+def serve(service: StationService, access: Access) -> Served:
+    app = create_app(service, access)
+    config = uvicorn.Config(
+        app,
+        host="127.0.0.1",
+        port=0,
+        access_log=False,
+        log_config=None,
+        lifespan="on",
+        timeout_graceful_shutdown=2,
+    )
+    server = uvicorn.Server(config)
+    thread = threading.Thread(target=server.run, name="uvicorn-test", daemon=True)
+    thread.start()
+    while not server.started:
+        if not thread.is_alive():
+            raise RuntimeError("the test server did not start")
+        time.sleep(0.01)
+    port = server.servers[0].sockets[0].getsockname()[1]
+    return Served(service, server, thread, f"http://127.0.0.1:{port}")
+
+
+ServeFactory = Callable[..., Served]
+
+
+@pytest.fixture
+def data_dir(tmp_path: Path) -> Path:
+    return tmp_path / "data"
+
+
+@pytest.fixture
+def make_served(data_dir: Path) -> Iterator[ServeFactory]:
+    """``make_served(sim=True, manual=False, open_reads=True, **sim_options)`` -> a running server."""
+    started: list[Served] = []
+
+    def make(
+        *, sim: bool = True, manual: bool = False, open_reads: bool = True, **sim_options: Any
+    ) -> Served:
+        settings = ServiceSettings(sim=sim, manual_prompts=manual, data=data_dir, sim_options=sim_options)
+        served = serve(StationService(settings), Access(TOKEN, open_reads))
+        started.append(served)
+        return served
+
+    yield make
+    for s in started:
+        s.stop()
+
+
+@pytest.fixture
+def served(make_served: ServeFactory) -> Served:
+    return make_served()
+
+
+def wait_final(client: httpx.Client, session_id: str) -> dict[str, Any]:
+    """Poll the session until it has ended (a hang fails through pytest-timeout)."""
+    while True:
+        doc: dict[str, Any] = client.get(f"/api/v1/sessions/{session_id}").json()
+        if doc["state"] in FINAL:
+            return doc
+        time.sleep(0.05)
+
+
+def wait_state(client: httpx.Client, session_id: str, states: set[str]) -> dict[str, Any]:
+    while True:
+        doc: dict[str, Any] = client.get(f"/api/v1/sessions/{session_id}").json()
+        if doc["state"] in states:
+            return doc
+        if doc["state"] in FINAL:
+            raise AssertionError(f"session ended {doc['state']} ({doc['error']}) before reaching {states}")
+        time.sleep(0.02)
