@@ -24,6 +24,21 @@ from station import __version__
 log = logging.getLogger(__name__)
 
 
+class _NoQueryStrings(logging.Filter):
+    """uvicorn's access log without query strings: the login URL's token never reaches a log, even where
+    the access log is on (``access_log=False`` is the default of ``station serve``)."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if isinstance(record.args, tuple) and len(record.args) >= 3:
+            path = record.args[2]
+            if isinstance(path, str):
+                record.args = (*record.args[:2], path.split("?", 1)[0], *record.args[3:])
+        return True
+
+
+ACCESS_FILTER = _NoQueryStrings()
+
+
 def create_app(service: StationService, access: Access, *, close_service: bool = True) -> FastAPI:
     """The FastAPI app serving ``service``; ``access`` holds the token and whether reads are open.
     With ``close_service`` the service is closed (session stopped, devices closed) at shutdown."""
@@ -47,6 +62,9 @@ def create_app(service: StationService, access: Access, *, close_service: bool =
         docs_url="/api/v1/docs",
         redoc_url=None,
     )
+    access_logger = logging.getLogger("uvicorn.access")
+    if ACCESS_FILTER not in access_logger.filters:
+        access_logger.addFilter(ACCESS_FILTER)
     app.state.service = service
     app.state.access = access
     app.state.stopping = asyncio.Event()

@@ -60,6 +60,19 @@ class _Wakeup:
         self._unsubscribe()
 
 
+def session_cursor(
+    request: Request, session_id: str, last_event_id: str | None = Header(None)
+) -> tuple[str, int]:
+    """The session's full id and the sequence number to resume after: checked before the stream starts
+    (404 for an unknown session, 422 for a malformed Last-Event-ID)."""
+    after = _last_id(last_event_id)
+    return service_of(request).record.get_session(session_id).id, after
+
+
+def station_cursor(last_event_id: str | None = Header(None)) -> int:
+    return _last_id(last_event_id)
+
+
 def _sse(e: EventRow, event_id: int) -> ServerSentEvent:
     return ServerSentEvent(data=EventModel.of(e).model_dump(mode="json"), event=e.type, id=str(event_id))
 
@@ -70,13 +83,11 @@ def _sse(e: EventRow, event_id: int) -> ServerSentEvent:
     dependencies=[Depends(require_token)],
 )
 async def session_events(
-    request: Request, session_id: str, last_event_id: str | None = Header(None)
+    request: Request, session_id: str, cursor: tuple[str, int] = Depends(session_cursor)
 ) -> AsyncIterator[ServerSentEvent]:
     """The session's events from after ``Last-Event-ID`` (its sequence number), live until it ends."""
     service = service_of(request)
-    after_seq = _last_id(last_event_id)
-    row = await run_in_threadpool(service.record.get_session, session_id)
-    sid = row.id
+    sid, after_seq = cursor
     wake = _Wakeup(request)
     try:
         yield ServerSentEvent(comment="station session events", retry=RETRY_MS)
@@ -104,11 +115,10 @@ async def session_events(
 
 @router.get("/events", response_class=EventSourceResponse, dependencies=[Depends(require_token)])
 async def station_events(
-    request: Request, last_event_id: str | None = Header(None)
+    request: Request, after_id: int = Depends(station_cursor)
 ) -> AsyncIterator[ServerSentEvent]:
     """Every session's events from after ``Last-Event-ID`` (the station-wide id), until the client leaves."""
     service = service_of(request)
-    after_id = _last_id(last_event_id)
     wake = _Wakeup(request)
     try:
         yield ServerSentEvent(comment="station events", retry=RETRY_MS)

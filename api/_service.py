@@ -287,7 +287,7 @@ class StationService:
         return overlay_png(frame.image, result)
 
     def _measure_array(self, image: Any) -> dict[str, Any]:
-        mp, _ = session_measure_params(self.record, "validation", {}, self.config, {})
+        mp, _ = session_measure_params(self.record, "repeatability", {}, self.config, {})
         try:
             return measure(image, mp).to_json()
         except MeasurementError as exc:
@@ -324,6 +324,7 @@ class StationService:
                 f"a {kind} session drives hardware, and this service has no station: start it with --sim "
                 "or --config FILE"
             )
+        assignments = measurement_names(assignments or {})
         measure_params, cal_doc = session_measure_params(
             self.record, kind, dict(params), self.config, assignments
         )
@@ -359,13 +360,19 @@ class StationService:
             if holder is not None:
                 raise SessionLockError(str(self.record.data_dir / "station.lock"), holder)
             runner.subscribe(self._on_event)
-            row = runner.create()
+            started = threading.Event()
+            unsubscribe = runner.subscribe(lambda e: started.set() if e.type == "state" else None)
+            runner.create()
             self._runner = runner
-            self._thread = threading.Thread(
-                target=self._run, args=(runner,), name="service-session", daemon=True
-            )
-            self._thread.start()
-        return SessionView(row, runner.progress())
+            thread = threading.Thread(target=self._run, args=(runner,), name="service-session", daemon=True)
+            self._thread = thread
+            thread.start()
+        # the answer shows the session under way (a resumed one no longer ``interrupted``)
+        while not started.wait(0.05) and thread.is_alive():
+            pass
+        unsubscribe()
+        assert runner.session_id is not None
+        return SessionView(self.record.get_session(runner.session_id), runner.progress())
 
     def _run(self, runner: SessionRunner) -> None:
         try:
@@ -540,6 +547,18 @@ class StationService:
                     f"the archive must hold one exported session (one session.json), found {len(folders)}"
                 )
             return self.record.import_session(folders[0])
+
+
+def measurement_names(values: Mapping[str, Any]) -> dict[str, Any]:
+    """``--set`` names, case-insensitive (``TESTWIDTH`` is ``testwidth``); PlanError for an unknown one."""
+    names = {n.lower(): n for n in MeasureParams.model_fields}
+    out: dict[str, Any] = {}
+    for key, value in values.items():
+        name = names.get(key.lower())
+        if name is None:
+            raise PlanError(f"unknown measurement parameter {key!r}; known: {', '.join(sorted(names))}")
+        out[name] = value
+    return out
 
 
 class ImportArchiveError(RecordError):

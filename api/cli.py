@@ -96,12 +96,15 @@ def serve(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
 
     async def startup(sockets: object = None) -> None:
         await original_startup(sockets=sockets)  # type: ignore[arg-type]
-        server.servers[0].sockets[0].getsockname()[1] if server.servers else args.port
+        port = server.servers[0].sockets[0].getsockname()[1] if server.servers else args.port
+        host = f"[{args.host}]" if ":" in args.host else args.host
+        base = f"http://{host}:{port}/"
         # The URL with the token goes to stdout once, never through logging.
         if generated:
-            pass
+            print(f"station serve: open {base}?token={token}", flush=True)
         else:
-            pass
+            print(f"station serve: open {base} (token: configured or STATION_API_TOKEN)", flush=True)
+        print(f"station serve: API {base}api/v1/docs ; Ctrl-C stops", flush=True)
 
     server.startup = startup  # type: ignore[method-assign]
     try:
