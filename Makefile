@@ -1,4 +1,4 @@
-# The README's two commands: `make run` (the station's main job on the simulated station) and `make test`.
+# The README's two commands: `make run` (the station as a service on the simulated station) and `make test`.
 VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
@@ -14,11 +14,16 @@ setup: $(STAMP)
 
 DATA ?= station-data
 
-# The station's main job on the simulated station: a validation session (the seed's 40 positions, the
-# simulated operator turning the micrometers) and a six-joint repeatability session, each recorded in
-# $(DATA) with its report (tables, figures, HTML); the paths are printed at the end.
-run: demo
+# The station's main job: the service on the simulated station. `station serve` prints the operator page's
+# URL (carrying a new token unless STATION_API_TOKEN is set) and runs until Ctrl-C, which stops the arm,
+# records a running session as interrupted and closes the devices. MANUAL=1: a person answers the table's
+# micrometer prompts in the page (the simulated operator is off).
+PORT ?= 8465
+run: setup
+	$(BIN)/station serve --sim --data $(DATA) --port $(PORT) $(if $(MANUAL),--manual-prompts,)
 
+# The finite demonstration: a validation session (the seed's 40 positions, the simulated operator turning
+# the micrometers) and a six-joint repeatability session, each recorded in $(DATA) with its report.
 demo: setup
 	$(BIN)/station run validation --sim --data $(DATA) --report
 	$(BIN)/station run repeatability --sim --param cycles=10 --data $(DATA) --report
