@@ -46,6 +46,7 @@ test: lint typecheck layers pytest
 bench: setup
 	$(BIN)/python -m bench
 	$(BIN)/python -m bench.station_bench
+	$(BIN)/python -m bench.service_load
 
 clean:
 	rm -rf $(VENV) $(OUT) .mypy_cache .ruff_cache .pytest_cache
