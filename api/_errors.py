@@ -33,7 +33,7 @@ STATUS_OF: tuple[tuple[type[Exception], int, str], ...] = (
     (RecordNotFoundError, 404, "session_not_found"),
     (SessionLockError, 409, "station_busy"),
     (ImportArchiveError, 422, "bad_archive"),
-    (PreflightError, 409, "preflight_failed"),
+    (PreflightError, 422, "preflight_failed"),
     (ConflictError, 409, "conflict"),
     (NotAvailableError, 409, "not_available"),
     (SessionError, 409, "session_error"),

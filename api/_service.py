@@ -46,6 +46,7 @@ from station.record import (
 from station.runner import (
     ACTIVE_STATES,
     FINAL_STATES,
+    PreflightError,
     Progress,
     RunnerState,
     SessionError,
@@ -360,17 +361,30 @@ class StationService:
             if holder is not None:
                 raise SessionLockError(str(self.record.data_dir / "station.lock"), holder)
             runner.subscribe(self._on_event)
-            started = threading.Event()
-            unsubscribe = runner.subscribe(lambda e: started.set() if e.type == "state" else None)
+            checked = threading.Event()
+            problems: list[str] = []
+
+            def on_event(e: EventRow) -> None:
+                if e.type == "preflight":
+                    problems.extend(str(p) for p in e.data.get("problems", []))
+                    checked.set()
+                elif e.type == "state" and e.data.get("state") in FINAL_STATES:
+                    checked.set()
+
+            unsubscribe = runner.subscribe(on_event)
             runner.create()
             self._runner = runner
             thread = threading.Thread(target=self._run, args=(runner,), name="service-session", daemon=True)
             self._thread = thread
             thread.start()
-        # the answer shows the session under way (a resumed one no longer ``interrupted``)
-        while not started.wait(0.05) and thread.is_alive():
+        # the answer waits for pre-flight (devices connected, every motion checked; nothing moved yet), so
+        # that out-of-limit targets are refused here, and shows the session under way
+        while not checked.wait(0.05) and thread.is_alive():
             pass
         unsubscribe()
+        if problems:
+            thread.join()
+            raise PreflightError(problems)
         assert runner.session_id is not None
         return SessionView(self.record.get_session(runner.session_id), runner.progress())
 

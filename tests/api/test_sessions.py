@@ -182,3 +182,18 @@ def test_the_camera_snapshot_is_refused_while_a_session_owns_the_camera(served: 
         assert "latest.png" in busy.json()["detail"]
         c.post(f"/api/v1/sessions/{sid}/actions", json={"action": "abort"})
         wait_final(c, sid)
+
+
+def test_out_of_limit_targets_are_refused_before_anything_moves(served: Served) -> None:
+    twin = served.service.devices.truth.twin  # type: ignore[union-attr]
+    before = list(twin.arm.actual_exact())
+    far = {"S1": [[0, 30, 60, 0, 90, 0], [75, 30, 60, 0, 90, 0]]}
+    with served.client() as c:
+        r = c.post("/api/v1/sessions", json={"kind": "repeatability", "params": {"joints": [], "sequences": far}})
+        assert r.status_code == 422, r.text
+        body = r.json()
+        assert body["code"] == "preflight_failed"
+        assert body["problems"]
+        assert "nothing moved" in body["detail"]
+        assert c.get("/api/v1/station").json()["session"] is None
+    assert list(twin.arm.actual_exact()) == before
