@@ -40,6 +40,19 @@ class MotionSettings(BaseModel):
     deadline_margin_s: float = Field(5.0, ge=0.0)
     stall_timeout_s: float = Field(3.0, gt=0.0, description="no change this long, target not reached: fail")
     poll_interval_s: float = Field(0.02, ge=0.0, description="pause between two polls of w0/w2")
+    first_poll_fraction: float = Field(
+        0.95,
+        ge=0.0,
+        le=1.0,
+        description="at most this fraction of the expected duration is slept before the first poll, and"
+        " only as far as the previous motion was seen still moving (0: poll from the start)",
+    )
+    reuse_s: float = Field(
+        0.05,
+        ge=0.0,
+        description="a position read after arrival, with nothing sent since, stands for where() and for"
+        " the next move's start this long (0: always read again)",
+    )
     resolution_deg: float = Field(0.002, gt=0.0, description="w0 equals the target within this (3 decimals)")
     arrival_tolerance_deg: float = Field(
         0.5, gt=0.0, description="|w2 - target| beyond this after arrival is an error (gross difference)"
@@ -132,6 +145,27 @@ class ArrivalTracker:
         # w2 still but grossly away from the target: the motion may not have started yet (or the arm
         # stopped short); keep polling, the stall timeout decides
         return self.at_target(w0) and not self.gross(actual_deg)
+
+    def see_commanded(self, now_s: float, commanded: Sequence[float]) -> bool:
+        """Record a ``w0`` polled alone while the arm moves; True when it equals the target."""
+        self.polls += 1
+        w0 = tuple(commanded)
+        if w0 != self.last_w0:
+            self.last_change_s = now_s
+        self.last_w0 = w0
+        return self.at_target(w0)
+
+    def see_actual(self, now_s: float, actual_pulses: Sequence[int]) -> bool:
+        """Record a ``w2``; True when it is within one encoder count of the previous ``w2`` recorded."""
+        self.polls += 1
+        pulses = tuple(actual_pulses)
+        still = self.last_w2_pulses is not None and all(
+            abs(a - b) <= 1 for a, b in zip(pulses, self.last_w2_pulses, strict=True)
+        )
+        if not still:
+            self.last_change_s = now_s
+        self.last_w2_pulses = pulses
+        return still
 
     def gross(self, actual_deg: Sequence[float] | None) -> bool:
         """Whether the actual joints are further than ``arrival_tolerance_deg`` from the target."""

@@ -195,8 +195,15 @@ def w2(joints: Iterable[float] = READY, **kw: str) -> Exchange:
     return say("w2", *table("Actual", joints), **kw)
 
 
-def arrived(joints: Iterable[float], polls: int = 2, **kw: str) -> list[Exchange]:
-    """The polls after a motion that find the arm at ``joints`` (w0 at target, w2 still over two polls)."""
+def arrived(joints: Iterable[float], **kw: str) -> list[Exchange]:
+    """The poll after a motion that finds the arm at ``joints``: w0 at the target, then armstat with
+    every axis done and w2 there."""
+    q = list(joints)
+    return [w0(q, **kw), armstat(**kw), w2(q, **kw)]
+
+
+def still_polls(joints: Iterable[float], polls: int = 2, **kw: str) -> list[Exchange]:
+    """``ready``/``home``'s polls that find the arm still at ``joints`` (w0 and w2 over ``polls`` polls)."""
     q = list(joints)
     return [e for _ in range(polls) for e in (w0(q, **kw), w2(q, **kw))]
 
@@ -247,5 +254,6 @@ def connect_exchanges(joints: Iterable[float] = READY, *, prompt: str = PROMPT) 
     ]
 
 
-FAST_MOTION = MotionSettings(deadline_margin_s=1.0, stall_timeout_s=0.5, poll_interval_s=0.0)
-"""Scripted ports answer at once: no pause between polls, short deadlines."""
+FAST_MOTION = MotionSettings(deadline_margin_s=1.0, stall_timeout_s=0.5, poll_interval_s=0.0, reuse_s=60.0)
+"""Scripted ports answer at once: no pause between polls, short deadlines; the readings of an arrival
+stand for the next move's start and where() until something is sent (never by age within a test)."""
