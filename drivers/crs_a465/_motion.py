@@ -40,13 +40,6 @@ class MotionSettings(BaseModel):
     deadline_margin_s: float = Field(5.0, ge=0.0)
     stall_timeout_s: float = Field(3.0, gt=0.0, description="no change this long, target not reached: fail")
     poll_interval_s: float = Field(0.02, ge=0.0, description="pause between two polls of w0/w2")
-    first_poll_fraction: float = Field(
-        0.95,
-        ge=0.0,
-        le=1.0,
-        description="at most this fraction of the expected duration is slept before the first poll, and"
-        " only as far as the previous motion was seen still moving (0: poll from the start)",
-    )
     reuse_s: float = Field(
         0.05,
         ge=0.0,

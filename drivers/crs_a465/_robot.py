@@ -154,9 +154,6 @@ class CrsA465:
         # w0 and w2 read at an arrival, with the time the w2 reply was complete: where() and the next
         # move's start reuse them for MotionSettings.reuse_s if nothing has been sent since
         self._fresh: tuple[float, PositionReport, PositionReport] | None = None
-        # the largest fraction of its expected duration at which the last motion's w0 still fell short
-        # of the target (0: no such poll): how far the next motion's first poll may be put off
-        self._pace = 0.0
 
     # ---------------------------------------------------------------- link
 
@@ -535,10 +532,11 @@ class CrsA465:
             return self._halted(what)
         return self._may_have_moved(exc, what)
 
-    def _presleep(self, until_s: float, what: str) -> None:
-        """Sleep (in steps of at most ``poll_interval_s``, watching the stop latch) until ``until_s``."""
+    def _sleep_watching(self, seconds: float, what: str) -> None:
+        """Sleep ``seconds`` in steps of at most ``poll_interval_s``, raising at once if the stop latches."""
+        until = self._clock() + seconds
         step = max(self.motion.poll_interval_s, 0.005)
-        while (left := until_s - self._clock()) > 0.0:
+        while (left := until - self._clock()) > 0.0:
             if self._stopped.is_set():
                 raise self._halted(what)
             self._sleep(min(step, left))
@@ -555,14 +553,11 @@ class CrsA465:
         of the previous poll's ``w2`` (both read after ``w0`` reached the target).
         """
         settings = self.motion
-        handed = self._clock()  # the prompt is back: the controller has the motion
-        expected_end = handed + expected_s
-        pace, self._pace = min(self._pace, settings.first_poll_fraction), 0.0
-        if pace > 0.0 and expected_s > 0.0:
-            self._presleep(handed + pace * expected_s, what)
+        expected_end = self._clock() + expected_s  # the prompt is back: the controller has the motion
         tracker = ArrivalTracker(target, settings, started_s=self._clock())
         w0: PositionReport | None = None
         w2: PositionReport | None = None
+        w0_reply_s = 0.0  # how long the last w0 took to come back (the line's and controller's time)
         while True:
             if self._stopped.is_set():
                 raise self._halted(what)
@@ -571,7 +566,13 @@ class CrsA465:
             try:
                 if fresh_w0:
                     asked = self._clock()
+                    if asked < expected_end < asked + w0_reply_s:
+                        # this poll would still be on the line when the motion is expected to end: poll
+                        # at the end instead (a slow line then reads w0 once the arm is there)
+                        self._sleep_watching(expected_end - asked, what)
+                        asked = self._clock()
                     w0 = self._position(cmd.W0, motion_poll=True)
+                    w0_reply_s = self._clock() - asked
                 assert w0 is not None
                 at_target = tracker.at_target(w0.joints_deg)
                 if at_target:
@@ -585,8 +586,6 @@ class CrsA465:
             now = self._clock()
             if fresh_w0:
                 tracker.see_commanded(now, w0.joints_deg)
-                if not at_target and expected_s > 0.0:
-                    self._pace = max(self._pace, (asked - handed) / expected_s)
             if at_target and w2 is not None:
                 still = tracker.see_actual(now, w2.pulses)
                 if (done or still) and not tracker.gross(w2.joints_deg):
@@ -611,9 +610,8 @@ class CrsA465:
             pause = self.motion.poll_interval_s
             if not at_target and now < expected_end < now + pause:
                 pause = expected_end - now  # poll when the model says the motion ends
-            elif not at_target and now >= expected_end:
-                # late against the model: poll again soon, backing off to the poll interval
-                pause = min(pause, max(pause / 10.0, now - expected_end))
+            elif not at_target and expected_end <= now < expected_end + 5.0 * pause:
+                pause /= 10.0  # just past the model's end: look again soon (then back to the interval)
             self._sleep(pause)
 
     def _wait_arrival(
