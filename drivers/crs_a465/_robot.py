@@ -4,7 +4,10 @@ One command at a time: consume the echo, wait for the prompt, look for a control
 reply (``_replies``). Motions are checked by the :class:`MotionGuard` before anything is written; an
 absolute move is composed from ``w0`` and single-joint relative ``joint`` moves (the system shell has no
 absolute multi-joint command [F]). ``joint`` and ``ready`` give the prompt back while the arm still
-moves [F], so after each the driver polls ``w0``/``w2`` until the arm has arrived (``_motion``).
+moves [F], so after each the driver polls until the arm has arrived (``_motion``): after ``joint``,
+``w0`` alone while the arm moves, then armstat and ``w2``; after ``ready`` and ``home``, ``w0``/``w2``
+pairs and armstat. The readings that proved an arrival stand for :meth:`CrsA465.where` and for the next
+move's start while nothing has been sent since and for at most ``MotionSettings.reuse_s``.
 
 The stop is best effort: ``stop()`` latches (every motion raises :class:`MotionStoppedError` until
 :meth:`CrsA465.clear_stop`), sends the halt key (Ctrl-Z by default), resynchronises the line and
@@ -614,14 +617,12 @@ class CrsA465:
                 pause /= 10.0  # just past the model's end: look again soon (then back to the interval)
             self._sleep(pause)
 
-    def _wait_arrival(
-        self, what: str, target: tuple[float, ...] | None, expected_s: float, limit_s: float, t0: float
+    def _wait_still(
+        self, what: str, expected_s: float, limit_s: float, t0: float
     ) -> tuple[PositionReport, PositionReport]:
-        """Wait for the end of a motion: :meth:`_wait_target` with a target, else (``ready``, ``home``)
-        poll ``w0``/``w2`` until both are still and armstat shows every axis done."""
-        if target is not None:
-            return self._wait_target(what, target, expected_s, limit_s, t0)
-        tracker = ArrivalTracker(target, self.motion, started_s=self._clock())
+        """``ready`` and ``home`` (whose end poses are assumptions, so no target): poll ``w0``/``w2``
+        until both are still over two polls and armstat shows every axis done."""
+        tracker = ArrivalTracker(None, self.motion, started_s=self._clock())
         while True:
             if self._stopped.is_set():
                 raise self._halted(what)
@@ -629,24 +630,12 @@ class CrsA465:
                 w0 = self._position(cmd.W0, motion_poll=True)
                 w2 = self._position(cmd.W2, motion_poll=True)
             except (DeviceProtocolError, DeviceTimeoutError) as exc:
-                if self._stopped.is_set():
-                    raise self._halted(what) from exc
-                raise self._may_have_moved(exc, what) from exc
+                raise self._poll_failed(what, exc) from exc
             if self._stopped.is_set():
                 raise self._halted(what)
             now = self._clock()
-            arrived = tracker.update(now, w0.joints_deg, w2.pulses, w2.joints_deg)
-            if arrived and (target is not None or self._all_done()):
+            if tracker.update(now, w0.joints_deg, w2.pulses, w2.joints_deg) and self._all_done():
                 return w0, w2
-            if target is not None and tracker.stalled(now):
-                if tracker.at_target(w0.joints_deg):
-                    self._arrived(what, target, w0, w2)  # at rest away from the target: says how far
-                axis, diff = worst_axis(w0.joints_deg, target)
-                raise ArrivalError(
-                    f"{what}: the arm stopped short: joint {axis} is commanded at"
-                    f" {w0.joints_deg[axis - 1]:.3f} deg, {diff:+.3f} deg from the target, and nothing has"
-                    f" moved for {self.motion.stall_timeout_s:g} s; read the position (where) before going on"
-                )
             if now - t0 > limit_s:
                 raise DeviceTimeoutError(
                     f"{what}: the arm had not arrived after {limit_s:.3g} s (expected {expected_s:.3g} s x"
@@ -748,7 +737,7 @@ class CrsA465:
         with self._busy():
             t0 = self._clock()
             self._command_motion(cmd.HOME, self.link.home_timeout_s)
-            w0, w2 = self._wait_arrival("home", None, 0.0, self.motion.deadline_margin_s, t0=self._clock())
+            w0, w2 = self._wait_still("home", 0.0, self.motion.deadline_margin_s, t0=self._clock())
             self.last_position = RobotPosition(w2.joints_deg, w0.joints_deg, w2.world_mm_deg)
             log.debug("home took %.3f s", self._clock() - t0)
             self._compare_pose("home", w0, self.motion.home_pose_deg)
@@ -768,7 +757,7 @@ class CrsA465:
             expected, limit = self._motion_deadline(start, far)
             t0 = self._clock()
             self._command_motion(cmd.READY, limit)
-            w0, w2 = self._wait_arrival("ready", None, expected, limit, t0)
+            w0, w2 = self._wait_still("ready", expected, limit, t0)
             self.last_position = RobotPosition(w2.joints_deg, w0.joints_deg, w2.world_mm_deg)
             self._compare_pose("ready", w0, ready_pose)
 
