@@ -10,11 +10,14 @@ started yet, or has stopped short: the stall timeout decides. While the arm move
 (each poll of a real console costs about 0.1 s of line time: ``w0``, ``w2`` and armstat are 570-650
 bytes at 57600 baud), and a poll that would still be on the line when the motion is expected to end
 waits for that end instead. After ``ready`` and ``home`` (end poses assumed) ``w0`` and ``w2`` must both
-be still over two polls and armstat show every axis done. The deadline of a move is its expected duration (trapezoidal profile, configurable joint
-speeds and accelerations, at the current speed setting) times ``deadline_factor`` plus
-``deadline_margin_s``; a move fails earlier only when the position has not changed for
-``stall_timeout_s`` while the target is not reached. The speeds and accelerations are public figures
-of another model of the arm [A]; the deadline's factor leaves room for them to be wrong.
+be still over two polls and armstat show every axis done.
+
+The deadline of a move is its expected duration (trapezoidal profile, configurable joint speeds and
+accelerations, at the current speed setting) times ``deadline_factor`` plus ``deadline_margin_s``; a
+move fails earlier only when the position has not changed for ``stall_timeout_s`` while the target is
+not reached. The speeds and accelerations are public figures of another model of the arm [A]; the
+deadline's factor leaves room for them to be wrong, and a wrong figure only delays the poll that finds
+the arm arrived.
 """
 
 from __future__ import annotations
