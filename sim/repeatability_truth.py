@@ -36,9 +36,10 @@ JOINTS = 6
 
 #: Two sequences of arbitrary motion of all six joints (offsets from the reference pose, deg), like the
 #: seed's Figures 16 and 17 (the seed does not give its sequences): each visits two poses, then returns.
+#: No joint moves more than 30 deg between two poses: the host's maximum step (the driver's safety).
 SEQUENCE_OFFSETS_DEG: dict[str, tuple[tuple[float, ...], ...]] = {
-    "S1": ((10.0, -8.0, -12.0, 15.0, -10.0, 20.0), (-5.0, -15.0, -5.0, -10.0, 12.0, -15.0)),
-    "S2": ((-12.0, -5.0, -15.0, -20.0, 8.0, -25.0), (8.0, -12.0, -8.0, 10.0, -6.0, 30.0)),
+    "S1": ((10.0, -8.0, -12.0, 15.0, -10.0, 20.0), (-5.0, -15.0, -5.0, -10.0, 12.0, -8.0)),
+    "S2": ((-12.0, -5.0, -15.0, -20.0, 8.0, -25.0), (8.0, -12.0, -8.0, 8.0, -6.0, 4.0)),
 }
 
 

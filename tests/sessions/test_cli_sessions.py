@@ -211,3 +211,30 @@ def test_a_killed_session_is_interrupted_and_resumes(tmp_path: Path) -> None:
         after = rec.captures(sid)
         assert {c.id for c in before} <= {c.id for c in after}  # nothing captured before the kill was lost
         assert any(c.meta.get("resumed") for c in after)  # the reference captured again
+
+
+def test_the_example_script_runs_a_repeatability_session(tmp_path: Path) -> None:
+    script = Path(__file__).resolve().parents[2] / "examples" / "repeatability.py"
+    p = subprocess.run(
+        [
+            sys.executable,
+            str(script),
+            "--sim",
+            "--cycles",
+            "3",
+            "--joints",
+            "1",
+            "5",
+            "--data",
+            str(tmp_path),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+    assert p.returncode == 0, p.stderr
+    assert "J1: RP" in p.stdout
+    assert "seed 0.05299" in p.stdout  # J5 beside the seed's Table 2
+    report = Path(p.stdout.split("report: ")[1].strip())
+    assert report.exists()

@@ -136,11 +136,13 @@ def test_pause_waits_at_a_safe_point_and_resume_continues(record: Record, fake: 
 
 def test_stop_finishes_the_step_and_returns_to_the_reference(record: Record, fake: FakeStation) -> None:
     r, log = runner(record, fake, "repeatability", cycles=10, warmup_cycles=0, joints=[1])
-    r.subscribe(lambda e: r.stop() if e.type == "step_finished" and e.data["index"] == 2 else None)
+    # asked while step 3 runs (its start is reported from the runner's thread): step 3 is finished
+    r.subscribe(lambda e: r.stop() if e.type == "step_started" and e.data["index"] == 3 else None)
     assert r.run() is RunnerState.STOPPED
     sid = sid_of(r)
     assert fake.robot.calls_of("move_joints")[-1] == (REF,)
-    assert [s.state for s in record.steps(sid)] == ["done"] * 3
+    assert [s.state for s in record.steps(sid)] == ["done"] * 4
+    assert len(record.captures(sid)) == 4
     assert fake.robot.connected is False
     assert fake.cam.connected is False
     assert "stopping" in log.states()
@@ -153,8 +155,8 @@ def test_abort_mid_motion_stops_the_robot_and_moves_nothing_more(record: Record)
     r, log = runner(record, fake, "repeatability", cycles=10, warmup_cycles=0, joints=[1])
 
     def on_event(e: Any) -> None:
-        if e.type == "step_finished" and e.data["index"] == 2:
-            fake.robot.move_time_s = 30.0  # the next motion takes long: abort lands in it
+        if e.type == "step_started" and e.data["index"] == 3:
+            fake.robot.move_time_s = 30.0  # step 3's motion takes long: abort lands in it
             threading.Timer(0.2, r.abort).start()
 
     r.subscribe(on_event)
@@ -229,12 +231,15 @@ def test_disk_full_fails_cleanly_without_a_half_written_capture(
     row = record.get_session(sid_of(r))
     assert "No space left on device" in (row.error or "")
     caps = record.captures(sid_of(r))
-    assert len(caps) == 2
-    assert len(record.measurements(sid_of(r))) == 2
+    # the third image found the disk full: no row and no file for it; what was grabbed after it (the
+    # store thread runs behind the arm) is still stored when the disk allows, never half-written
+    assert [c.step_index for c in caps][:2] == [0, 1]
+    assert 2 not in [c.step_index for c in caps]
+    assert len(record.measurements(sid_of(r))) == len(caps)
     image_dir = record.data_dir / "images" / sid_of(r)
-    assert sorted(p.name for p in image_dir.iterdir()) == sorted(
-        p.split("/")[-1] for p in (c.path for c in caps)
-    )
+    on_disk = sorted(p.name for p in image_dir.iterdir())
+    assert on_disk == sorted(c.path.split("/")[-1] for c in caps)  # no temporary or orphan file
+    assert [s.state for s in record.steps(sid_of(r))][2] == "failed"
 
 
 def test_a_second_session_is_refused_while_one_runs(record: Record, fake: FakeStation) -> None:
@@ -257,7 +262,7 @@ def test_reconcile_marks_dead_sessions_interrupted(record: Record) -> None:
 
 def test_resume_skips_completed_steps_and_recaptures_the_reference(record: Record, fake: FakeStation) -> None:
     r, _ = runner(record, fake, "repeatability", cycles=6, warmup_cycles=0, joints=[1])
-    r.subscribe(lambda e: r.abort() if e.type == "step_finished" and e.data["index"] == 3 else None)
+    r.subscribe(lambda e: r.abort() if e.type == "step_started" and e.data["index"] == 4 else None)
     assert r.run() is RunnerState.ABORTED
     sid = sid_of(r)
     first = len(record.captures(sid))
