@@ -192,3 +192,18 @@ def test_the_front_door_refuses_formats_it_cannot_check(tmp_path: Path) -> None:
         load_image(tmp_path)
     with pytest.raises(ImageFileError, match="no such file"):
         load_image(tmp_path / "missing.png")
+
+
+def test_the_record_reads_captures_through_the_front_door(tmp_path: Path) -> None:
+    import hashlib
+
+    from station.record import RecordError, _images
+
+    fifo = tmp_path / "capture.png"
+    os.mkfifo(fifo)
+    with pytest.raises(RecordError, match="FIFO"):  # refused at once: opening it would block
+        _images.read_checked(fifo, "0" * 64)
+    bomb = write_png_bomb(tmp_path / "bomb.png", 40000, 40000)
+    sha = hashlib.sha256(bomb.read_bytes()).hexdigest()
+    with pytest.raises(RecordError, match="50 Mpx limit"):  # refused from the header, never decoded
+        _images.read_checked(bomb, sha)
