@@ -34,6 +34,7 @@ import socket
 import threading
 import time
 from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -45,6 +46,7 @@ from station.batch import measure_file
 from station.config import StationDevices
 from station.devices import (
     DeviceError,
+    Frame,
     MotionRejectedError,
     MotionStoppedError,
     OperatorCancelledError,
@@ -234,6 +236,9 @@ class SessionRunner:
         self._captures = 0
         self._measured_ok = 0
         self._resting_state = RunnerState.RUNNING
+        self._last_error: str | None = None
+        self._store_pool: ThreadPoolExecutor | None = None
+        self._store_futures: list[Future[None]] = []
         self.error: str | None = None
         self.results: dict[str, Any] | None = None
 
@@ -383,6 +388,8 @@ class SessionRunner:
             self._set_state(RunnerState.STOPPING if self._stop else RunnerState.RUNNING)
         try:
             with contextlib.ExitStack() as stack:
+                stack.callback(self._close_store)
+                self._store_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="runner-store")
                 try:
                     steps, prelude = self._steps(ctx)
                     self._connect(stack)
@@ -390,9 +397,13 @@ class SessionRunner:
                     for step in prelude + steps:
                         self._safe_point()
                         self._run_step(sid, step, ctx)
+                    self._drain()
+                    self._check_store()
                     final = RunnerState.SUCCEEDED
                 except _StopRequestedError:
                     self._return_to_reference()
+                    self._drain()
+                    self._check_store()
                     final = RunnerState.STOPPED
                 finally:
                     self._set_state_if_active(RunnerState.STOPPING if final is RunnerState.STOPPED else None)
@@ -418,6 +429,16 @@ class SessionRunner:
             raise
         self._finish(sid, final)
         return final
+
+    def _close_store(self) -> None:
+        """Store what is still queued (nothing captured is lost), then end the store thread."""
+        pool, self._store_pool = self._store_pool, None
+        if pool is not None:
+            pool.shutdown(wait=True)
+        for f in self._store_futures:
+            exc = f.exception()
+            if exc is not None and str(exc) != self.error:
+                log.error("storing a capture failed: %s", exc)
 
     def _finish(self, sid: str, final: RunnerState) -> None:
         if self.results is not None:
@@ -600,6 +621,10 @@ class SessionRunner:
             raise PreflightError(problems)
 
     def _safe_point(self) -> None:
+        if self._pause or self._stop or self._abort:
+            # what the last step captured is stored before the session rests (outside the lock: the
+            # store thread reports its events under it)
+            self._drain()
         with self._lock:
             if self._abort:
                 raise _AbortRequestedError()
@@ -616,21 +641,56 @@ class SessionRunner:
                 self._set_state(RunnerState.RUNNING)
 
     def _run_step(self, sid: str, step: Step, ctx: PlanContext) -> None:
+        """Run the step's actions here; its captures are stored, measured and the step finished by the
+        store thread, in order, while the next step's motions run (the arm never waits for the disk).
+        A step is ``done`` in the record only once everything it captured is stored and measured."""
+        self._check_store()
         t0 = time.monotonic()
         self.record.begin_step(sid, step.index, step.name, dict(step.meta))
         self._event("step_started", {"index": step.index, "name": step.name})
         data: dict[str, Any] = {}
+        grabbed: list[tuple[list[Frame], dict[str, Any], int]] = []
         try:
-            for frame_index_base, action in enumerate(step.actions):
-                del frame_index_base
+            for action in step.actions:
                 if self._abort:
                     raise _AbortRequestedError()
-                data.update(self._act(sid, step, action, ctx))
+                self._check_store()
+                if isinstance(action, Capture):
+                    grabbed.append(self._grab(sid, step, action))
+                else:
+                    data.update(self._act(sid, step, action, ctx))
         except BaseException as exc:
-            self.record.finish_step(sid, step.index, data={**data, "error": str(exc)}, state="failed")
+            # what was grabbed before the failure is still stored (nothing captured is lost)
+            reason = str(exc) or type(exc).__name__
+            self._submit(lambda: self._store_step(sid, step, grabbed, data, t0, failed=reason))
+            self._drain()
             if isinstance(exc, DeviceError) and step_moves(step):
                 self._reread_position("motion error")
             raise
+        self._submit(lambda: self._store_step(sid, step, grabbed, data, t0))
+
+    def _store_step(
+        self,
+        sid: str,
+        step: Step,
+        grabbed: list[tuple[list[Frame], dict[str, Any], int]],
+        data: dict[str, Any],
+        t0: float,
+        failed: str | None = None,
+    ) -> None:
+        """In the store thread: store and measure the step's frames, then finish the step."""
+        try:
+            ids = [
+                cid for frames, meta, first in grabbed for cid in self._store(sid, step, frames, meta, first)
+            ]
+        except BaseException as exc:
+            self.record.finish_step(sid, step.index, data={**data, "error": str(exc)}, state="failed")
+            raise
+        if ids:
+            data = {**data, "captures": ids}
+        if failed is not None:
+            self.record.finish_step(sid, step.index, data={**data, "error": failed}, state="failed")
+            return
         self.record.finish_step(sid, step.index, data=data)
         with self._lock:
             self._done += 1
@@ -638,6 +698,38 @@ class SessionRunner:
         self._event(
             "step_finished", {"index": step.index, "name": step.name, "progress": self.progress().to_json()}
         )
+        if self._captures >= EARLY_FAILURE_CAPTURES and self._measured_ok == 0:
+            raise SessionError(
+                f"none of the first {self._captures} captures could be measured (last: {self._last_error}); "
+                "check that the crossing is in view and in focus, the lighting, and the measurement "
+                "parameters, then start again"
+            )
+
+    # ------------------------------------------------------------------ the store thread
+
+    def _submit(self, task: Callable[[], None]) -> None:
+        if self._store_pool is None:
+            task()
+            return
+        self._store_futures = [f for f in self._store_futures if not f.done() or f.exception() is not None]
+        self._store_futures.append(self._store_pool.submit(task))
+        # at most one step stored behind the arm: memory stays flat and errors surface within a step
+        while sum(not f.done() for f in self._store_futures) > 1:
+            next(f for f in self._store_futures if not f.done()).exception()  # waits for it
+
+    def _check_store(self) -> None:
+        """Raise the first error of the store thread (disk full, record lost ...) in the runner thread."""
+        for f in self._store_futures:
+            if f.done() and f.exception() is not None:
+                exc = f.exception()
+                self._store_futures = [g for g in self._store_futures if g is not f]
+                assert exc is not None
+                raise exc
+
+    def _drain(self) -> None:
+        """Wait until everything grabbed is stored; errors are left for ``_check_store``."""
+        for f in list(self._store_futures):
+            f.exception()
 
     def _act(self, sid: str, step: Step, action: Any, ctx: PlanContext) -> dict[str, Any]:
         devices = self.devices
@@ -658,13 +750,12 @@ class SessionRunner:
                 self._cond.wait_for(lambda: self._abort, timeout=action.seconds)
             if self._abort:
                 raise _AbortRequestedError()
-        elif isinstance(action, Capture):
-            return self._capture(sid, step, action)
         else:
             raise PlanError(f"unknown action {action!r}")
         return {}
 
-    def _capture(self, sid: str, step: Step, action: Capture) -> dict[str, Any]:
+    def _grab(self, sid: str, step: Step, action: Capture) -> tuple[list[Frame], dict[str, Any], int]:
+        """In the runner thread (the devices' only user): where the arm is, then the frames."""
         devices = self.devices
         assert devices is not None
         meta: dict[str, Any] = dict(action.meta)
@@ -684,7 +775,12 @@ class SessionRunner:
             if earlier
             else 0
         )
-        frames = devices.camera.grab_many(action.frames)
+        return devices.camera.grab_many(action.frames), meta, first
+
+    def _store(
+        self, sid: str, step: Step, frames: list[Frame], meta: dict[str, Any], first: int
+    ) -> list[int]:
+        """Store each frame (lossless, fsynced), then measure it from the stored file and record that."""
         ids = []
         params_doc = self.measure_params.model_dump(mode="json")
         software = f"station {__version__}"
@@ -703,11 +799,13 @@ class SessionRunner:
             )
             result = measure_file(Path(self.record.data_dir) / cap.path, self.measure_params).to_json()
             result["file"] = cap.path
-            if self.scale_calibration is not None:
+            if self.scale_calibration is not None and result.get("ok"):
                 result.setdefault("diagnostics", {})["scale_calibration"] = self.scale_calibration
             self.record.add_measurement(sid, cap.id, result, params=params_doc, software=software)
             ok = bool(result.get("ok"))
             self._measured_ok += ok
+            if not ok:
+                self._last_error = result.get("error")
             self._event(
                 "measurement",
                 {
@@ -720,13 +818,7 @@ class SessionRunner:
                 },
             )
             ids.append(cap.id)
-        if self._captures >= EARLY_FAILURE_CAPTURES and self._measured_ok == 0:
-            raise SessionError(
-                f"none of the first {self._captures} captures could be measured (last: "
-                f"{result.get('error')}); check that the crossing is in view and in focus, the lighting, "
-                "and the measurement parameters, then start again"
-            )
-        return {"captures": ids}
+        return ids
 
     def _return_to_reference(self) -> None:
         devices = self.devices
@@ -760,16 +852,17 @@ class SessionRunner:
     def _event(self, kind: str, data: dict[str, Any]) -> None:
         if self._session_id is None:
             return
-        try:
-            event = self.record.add_event(self._session_id, kind, data)
-        except RecordError as exc:
-            log.error("event %s not recorded: %s", kind, exc)
-            return
-        for listener in list(self._listeners):
+        with self._lock:  # the runner and the store thread both report: one order, one lock (no ABBA)
             try:
-                listener(event)
-            except Exception:
-                log.exception("event listener failed")
+                event = self.record.add_event(self._session_id, kind, data)
+            except RecordError as exc:
+                log.error("event %s not recorded: %s", kind, exc)
+                return
+            for listener in list(self._listeners):
+                try:
+                    listener(event)
+                except Exception:
+                    log.exception("event listener failed")
 
     def _on_prompt(self, event: PromptEvent) -> None:
         p = event.prompt

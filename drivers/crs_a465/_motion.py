@@ -2,12 +2,14 @@
 
 ``joint`` and ``ready`` give the prompt back at once while the arm still moves [F], so the driver
 decides arrival itself from what it polls. The arm has arrived when the commanded position (``w0``)
-equals the target within the controller's resolution and the actual position (``w2``) has not changed
-by more than one encoder count between two polls. The deadline of a move is its expected duration
-(trapezoidal profile, configurable joint speeds and accelerations, at the current speed setting)
-times ``deadline_factor`` plus ``deadline_margin_s``; a move fails earlier only when the position has
-not changed for ``stall_timeout_s`` while the target is not reached. The speeds and accelerations are
-public figures of another model of the arm [A]; the deadline's factor leaves room for them to be wrong.
+equals the target within the controller's resolution, the actual position (``w2``) has not changed
+by more than one encoder count between two polls, and ``w2`` is within ``arrival_tolerance_deg`` of
+the target (a still arm further away has not started yet, or has stopped short: the stall timeout
+decides). The deadline of a move is its expected duration (trapezoidal profile, configurable joint
+speeds and accelerations, at the current speed setting) times ``deadline_factor`` plus
+``deadline_margin_s``; a move fails earlier only when the position has not changed for
+``stall_timeout_s`` while the target is not reached. The speeds and accelerations are public figures
+of another model of the arm [A]; the deadline's factor leaves room for them to be wrong.
 """
 
 from __future__ import annotations
@@ -33,9 +35,6 @@ class MotionSettings(BaseModel):
     )
     accel_deg_s2: Six = Field(
         (720.0, 720.0, 720.0, 1430.0, 1430.0, 1430.0), description="[A] joint accelerations (not scaled)"
-    )
-    counts_per_deg: Six = Field(
-        (400000 / 360,) * 3 + (200000 / 360,) * 3, description="[A] encoder counts per degree"
     )
     deadline_factor: float = Field(3.0, ge=1.0, description="deadline = expected duration x this + margin")
     deadline_margin_s: float = Field(5.0, ge=0.0)
@@ -108,8 +107,14 @@ class ArrivalTracker:
             <= self.settings.resolution_deg
         )
 
-    def update(self, now_s: float, commanded: Sequence[float], actual_pulses: Sequence[int]) -> bool:
-        """Record one poll; True when the arm has arrived (see the module's rule)."""
+    def update(
+        self,
+        now_s: float,
+        commanded: Sequence[float],
+        actual_pulses: Sequence[int],
+        actual_deg: Sequence[float] | None = None,
+    ) -> bool:
+        """Record one poll (``w0``'s joints, ``w2``'s pulses and joints); True when the arm has arrived."""
         self.polls += 1
         w0 = tuple(commanded)
         pulses = tuple(actual_pulses)
@@ -124,7 +129,16 @@ class ArrivalTracker:
             return False
         if self.target is None:
             return w0_still
-        return self.at_target(w0)
+        # w2 still but grossly away from the target: the motion may not have started yet (or the arm
+        # stopped short); keep polling, the stall timeout decides
+        return self.at_target(w0) and not self.gross(actual_deg)
+
+    def gross(self, actual_deg: Sequence[float] | None) -> bool:
+        """Whether the actual joints are further than ``arrival_tolerance_deg`` from the target."""
+        if self.target is None or actual_deg is None:
+            return False
+        tolerance = self.settings.arrival_tolerance_deg
+        return any(abs(a - t) > tolerance for a, t in zip(actual_deg, self.target, strict=True))
 
     def stalled(self, now_s: float) -> bool:
         """Nothing changed for ``stall_timeout_s`` while the target is not reached."""

@@ -442,6 +442,8 @@ class CrsA465:
     def _command_motion(self, request: Request, timeout_s: float) -> None:
         """Send a motion command and check what it printed; a garbled or lost reply may hide a motion."""
         text = request.text(self.shell)
+        if self._stopped.is_set():  # latched since the method began: send no motion after the halt key
+            raise self._halted(f"{text} (not sent)")
         try:
             lines = self._run(request, timeout_s=timeout_s, watch=True)
             if self._stopped.is_set():
@@ -512,9 +514,12 @@ class CrsA465:
             if self._stopped.is_set():
                 raise self._halted(what)
             now = self._clock()
-            if tracker.update(now, w0.joints_deg, w2.pulses) and (target is not None or self._all_done()):
+            arrived = tracker.update(now, w0.joints_deg, w2.pulses, w2.joints_deg)
+            if arrived and (target is not None or self._all_done()):
                 return w0, w2
             if target is not None and tracker.stalled(now):
+                if tracker.at_target(w0.joints_deg):
+                    self._arrived(what, target, w0, w2)  # at rest away from the target: says how far
                 axis, diff = worst_axis(w0.joints_deg, target)
                 raise ArrivalError(
                     f"{what}: the arm stopped short: joint {axis} is commanded at"
@@ -551,6 +556,7 @@ class CrsA465:
     def _arrived(self, what: str, target: tuple[float, ...], w0: PositionReport, w2: PositionReport) -> None:
         error = tuple(a - t for a, t in zip(w2.joints_deg, target, strict=True))
         self.last_arrival = Arrival(what, target, w0.joints_deg, w2.joints_deg, error)
+        log.info("%s arrived: w2 - target = %s deg", what, _fmt(error))
         self.last_position = RobotPosition(w2.joints_deg, w0.joints_deg, w2.world_mm_deg)
         axis, diff = worst_axis(w2.joints_deg, target)
         if abs(diff) > self.motion.arrival_tolerance_deg:

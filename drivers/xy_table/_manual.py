@@ -102,9 +102,7 @@ class ManualXYTable:
         """Raise what ``move_to`` would before asking anything: non-finite values, travel. No side effects."""
         for axis, value in (("x_mm", x_mm), ("y_mm", y_mm)):
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-                raise MotionRejectedError(
-                    f"{self._name}: target {axis} = {value!r} is not a finite number of millimetres"
-                )
+                raise MotionRejectedError(f"{self._name}: {axis} must be a finite number, got {value!r}")
         if max(abs(x_mm), abs(y_mm)) > _FAR_MM:  # no micrometer reading exists: no rounding either
             raise MotionRejectedError(
                 f"{self._name}: target ({x_mm:g}, {y_mm:g}) mm is outside its travel "

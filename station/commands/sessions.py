@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Any
 from station.commands import SubParsers
 from station.commands.run import add_record_options
 from station.record import Record, RecordError, SessionRow, lock_holder
+from station.reporting import ReportError
 from station.session import open_record
 
 if TYPE_CHECKING:
@@ -124,17 +125,14 @@ def write_session_report(
 
 
 def run_report(args: argparse.Namespace) -> int:
-    from station.reporting import text_tables
-
     try:
         files = write_session_report(args.session, args.data, args.database, args.out)
-        with _open(args) as record:
-            doc = report_document(record.get_session(args.session))
-    except (RecordError, OSError) as exc:
+    except (RecordError, OSError, ReportError) as exc:
         print(f"station report: {exc}", file=sys.stderr)
         return 1
-    for name, text in text_tables(doc).items():
-        print(f"{name}\n{text}\n")
+    for name, text in files.tables.items():
+        if name != "positions":  # the 40-row table is in the HTML report
+            print(f"{text}\n")
     print(f"report: {files.html}")
     for f in files.figures:
         print(f"figure: {f}")

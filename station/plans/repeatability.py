@@ -205,9 +205,12 @@ class RepeatabilityPlan:
             if test in params.sequences:
                 entry["targets_deg"] = [list(t) for t in params.sequences[test]]
             else:
-                entry["joint"] = int(test[1:])
-                entry["delta_deg"] = params.delta_deg
-                entry["away_deg"] = list(excursions[test][0])
+                joint = int(test[1:])
+                away = list(excursions[test][0])
+                ref = self._reference(params, ctx)
+                entry["joint"] = joint
+                entry["delta_deg"] = away[joint - 1] - ref[joint - 1]  # signed: the direction used
+                entry["away_deg"] = away
             tests[test] = entry
         return {
             "rp_mm": {t: e["rp_mm"] for t, e in tests.items() if "rp_mm" in e},

@@ -392,6 +392,12 @@ class FakeStation:
                 scene=Scene(robot=self.robot, table=self.table, reference_deg=tuple(self.robot.joints))
             )
 
+    @property
+    def cam(self) -> FakeCamera:
+        """The fake camera (built in ``__post_init__`` when not given)."""
+        assert self.camera is not None
+        return self.camera
+
     def devices(self) -> StationDevices:
         assert self.camera is not None
         config = StationConfig(

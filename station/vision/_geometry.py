@@ -82,10 +82,11 @@ def centre(H: FloatArray, width_mm: float) -> tuple[tuple[float, float], tuple[f
     quadrilateral's diagonals.
     """
     half = width_mm / 2.0
-    origin = apply_homography(H, np.zeros((1, 2)))[0]
-    center_mm = (half - float(origin[0]), half - float(origin[1]))
-    px = apply_homography(np.asarray(np.linalg.inv(H), np.float64), np.array([[half, half]]))[0]
-    return center_mm, (float(px[0]), float(px[1]))
+    # T(0, 0) is T's last column, dehomogenised
+    h02, h12, h22 = (float(v) for v in H[:, 2])
+    center_mm = (half - h02 / h22, half - h12 / h22)
+    px = np.linalg.inv(H) @ np.array([half, half, 1.0])
+    return center_mm, (float(px[0] / px[2]), float(px[1] / px[2]))
 
 
 def edge_angle_deg(line: Line, *, vertical: bool) -> float:

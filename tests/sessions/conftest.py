@@ -4,11 +4,26 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 from station.record import EventRow, Record
+from station.runner import SessionRunner
 from station.testing import FakeStation
+
+
+def sid_of(runner: SessionRunner) -> str:
+    """The runner's session id (it has one once it ran)."""
+    assert runner.session_id is not None, "the runner created no session"
+    return runner.session_id
+
+
+def results_of(record: Record, runner: SessionRunner) -> dict[str, Any]:
+    """The recorded results of the runner's session (failing the test if there are none)."""
+    results = record.get_session(sid_of(runner)).results
+    assert results is not None, f"session {runner.session_id} has no results: {runner.error}"
+    return results
 
 
 @pytest.fixture

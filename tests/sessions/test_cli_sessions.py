@@ -136,11 +136,20 @@ def test_reanalyse_reproduces_the_results_bit_for_bit(tmp_path: Path) -> None:
         (["run", "repeatability", "--config", "/nonexistent/station.toml"], "no such configuration file"),
     ],
 )
-def test_usage_errors_exit_2_with_one_clear_line(tmp_path: Path, args: list[str], message: str) -> None:
-    p = station(*args, "--data", str(tmp_path / "data"))
-    assert p.returncode == 2, (p.returncode, p.stderr)
-    assert message in p.stderr
-    assert "Traceback" not in p.stderr
+def test_usage_errors_exit_2_with_one_clear_line(
+    tmp_path: Path, args: list[str], message: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """In-process (the same entry point as the console script): nothing is built, nothing moves."""
+    from station.cli import main
+
+    try:
+        code = main([*args, "--data", str(tmp_path / "data")])
+    except SystemExit as exc:  # argparse's own usage errors
+        code = int(exc.code or 0)
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert message in err
+    assert "Traceback" not in err
 
 
 def test_a_killed_session_is_interrupted_and_resumes(tmp_path: Path) -> None:
@@ -202,3 +211,30 @@ def test_a_killed_session_is_interrupted_and_resumes(tmp_path: Path) -> None:
         after = rec.captures(sid)
         assert {c.id for c in before} <= {c.id for c in after}  # nothing captured before the kill was lost
         assert any(c.meta.get("resumed") for c in after)  # the reference captured again
+
+
+def test_the_example_script_runs_a_repeatability_session(tmp_path: Path) -> None:
+    script = Path(__file__).resolve().parents[2] / "examples" / "repeatability.py"
+    p = subprocess.run(
+        [
+            sys.executable,
+            str(script),
+            "--sim",
+            "--cycles",
+            "3",
+            "--joints",
+            "1",
+            "5",
+            "--data",
+            str(tmp_path),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+    assert p.returncode == 0, p.stderr
+    assert "J1: RP" in p.stdout
+    assert "seed 0.05299" in p.stdout  # J5 beside the seed's Table 2
+    report = Path(p.stdout.split("report: ")[1].strip())
+    assert report.exists()

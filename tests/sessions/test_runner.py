@@ -15,7 +15,7 @@ from station.plans import get_plan, parse_params
 from station.record import Record, SessionLockError, station_lock
 from station.runner import ACTIVE_STATES, RunnerState, SessionRunner, reconcile
 from station.testing import FakeRobot, FakeStation
-from tests.sessions.conftest import EventLog
+from tests.sessions.conftest import EventLog, results_of, sid_of
 
 REF = (0.0, 30.0, 60.0, 0.0, 90.0, 0.0)
 
@@ -33,8 +33,7 @@ def test_repeatability_on_fakes_captures_every_cycle_and_computes_rp(
 ) -> None:
     r, log = runner(record, fake, "repeatability", cycles=4, warmup_cycles=1, joints=[1, 3])
     assert r.run() is RunnerState.SUCCEEDED
-    sid = r.session_id
-    assert sid is not None
+    sid = sid_of(r)
     row = record.get_session(sid)
     assert row.state == "succeeded"
     assert row.error is None
@@ -42,10 +41,11 @@ def test_repeatability_on_fakes_captures_every_cycle_and_computes_rp(
     assert len(caps) == 2 * (1 + 4)  # a reference and four cycles per test
     assert [c.meta["role"] for c in caps[:5]] == ["reference", "cycle", "cycle", "cycle", "cycle"]
     assert all(m.result["ok"] for m in record.measurements(sid))
-    assert set(row.results["rp_mm"]) == {"J1", "J3"}
+    results = results_of(record, r)
+    assert set(results["rp_mm"]) == {"J1", "J3"}
     # the fake arm returns exactly: the measured scatter is the camera noise only, well under 1 um
-    assert all(0 <= rp < 0.001 for rp in row.results["rp_mm"].values())
-    assert row.results["tests"]["J1"]["n_cycles"] == 4
+    assert all(0 <= rp < 0.001 for rp in results["rp_mm"].values())
+    assert results["tests"]["J1"]["n_cycles"] == 4
     # every motion went through move_joints, and the arm ends at the reference
     assert fake.robot.calls_of("set_speed") == [(80,)]
     assert tuple(fake.robot.joints) == REF
@@ -57,7 +57,7 @@ def test_repeatability_on_fakes_captures_every_cycle_and_computes_rp(
 def test_events_have_per_session_sequence_and_increasing_ids(record: Record, fake: FakeStation) -> None:
     r, log = runner(record, fake, "repeatability", cycles=3, warmup_cycles=0, joints=[2])
     r.run()
-    events = record.events(r.session_id)
+    events = record.events(sid_of(r))
     assert [e.seq for e in events] == list(range(1, len(events) + 1))
     assert all(a.id < b.id for a, b in itertools.pairwise(events))
     assert [e.id for e in log.events] == [e.id for e in events]
@@ -68,12 +68,12 @@ def test_events_have_per_session_sequence_and_increasing_ids(record: Record, fak
 def test_validation_on_fakes_compares_with_the_pattern(record: Record, fake: FakeStation) -> None:
     r, _ = runner(record, fake, "validation", steps_per_side=3)
     assert r.run() is RunnerState.SUCCEEDED
-    res = record.get_session(r.session_id).results
+    res = results_of(record, r)
     assert res["n_positions"] == 12
     assert res["mean_um"] < 0.2
     assert res["max_um"] < 0.5
     assert abs(res["scale"] - 1.0) < 0.005
-    assert res["scale_calibration"]["session_id"] == r.session_id
+    assert res["scale_calibration"]["session_id"] == sid_of(r)
     # same-direction approach: an overshoot before the first position and before every backwards step
     moves = fake.table.calls_of("move_to")
     overshoots = len(moves) - 12
@@ -84,27 +84,28 @@ def test_direct_approach_moves_once_per_position(record: Record, fake: FakeStati
     r, _ = runner(record, fake, "validation", steps_per_side=2, approach="direct")
     assert r.run() is RunnerState.SUCCEEDED
     assert len(fake.table.calls_of("move_to")) == 8
-    assert record.get_session(r.session_id).results["scale_calibration"] is None
+    assert results_of(record, r)["scale_calibration"] is None
 
 
 def test_preflight_reports_every_problem_and_moves_nothing(record: Record) -> None:
     fake = FakeStation(robot=FakeRobot(REF, max_step_deg=5.0))
     r, _log = runner(record, fake, "repeatability", cycles=3, joints=[1, 2], delta_deg=10)
     assert r.run() is RunnerState.FAILED
-    row = record.get_session(r.session_id)
-    assert "pre-flight found" in (row.error or "")
-    assert "J1" in row.error
-    assert "J2" in row.error
+    row = record.get_session(sid_of(r))
+    error = row.error or ""
+    assert "pre-flight found" in error
+    assert "J1" in error
+    assert "J2" in error
     fake.robot.assert_not_called("move_joints")
     fake.robot.assert_not_called("set_speed")
-    assert record.captures(r.session_id) == []
+    assert record.captures(sid_of(r)) == []
 
 
 def test_preflight_refuses_an_unpowered_arm(record: Record) -> None:
     fake = FakeStation(robot=FakeRobot(REF, powered=False, homed=False))
     r, _ = runner(record, fake, "repeatability", cycles=3, joints=[1])
     assert r.run() is RunnerState.FAILED
-    error = record.get_session(r.session_id).error or ""
+    error = record.get_session(sid_of(r)).error or ""
     assert "power is off" in error
     assert "not homed" in error
     fake.robot.assert_not_called("move_joints")
@@ -135,13 +136,15 @@ def test_pause_waits_at_a_safe_point_and_resume_continues(record: Record, fake: 
 
 def test_stop_finishes_the_step_and_returns_to_the_reference(record: Record, fake: FakeStation) -> None:
     r, log = runner(record, fake, "repeatability", cycles=10, warmup_cycles=0, joints=[1])
-    r.subscribe(lambda e: r.stop() if e.type == "step_finished" and e.data["index"] == 2 else None)
+    # asked while step 3 runs (its start is reported from the runner's thread): step 3 is finished
+    r.subscribe(lambda e: r.stop() if e.type == "step_started" and e.data["index"] == 3 else None)
     assert r.run() is RunnerState.STOPPED
-    sid = r.session_id
+    sid = sid_of(r)
     assert fake.robot.calls_of("move_joints")[-1] == (REF,)
-    assert [s.state for s in record.steps(sid)] == ["done"] * 3
+    assert [s.state for s in record.steps(sid)] == ["done"] * 4
+    assert len(record.captures(sid)) == 4
     assert fake.robot.connected is False
-    assert fake.camera.connected is False
+    assert fake.cam.connected is False
     assert "stopping" in log.states()
     assert log.states()[-1] == "stopped"
     assert record.get_session(sid).state == "stopped"
@@ -152,8 +155,8 @@ def test_abort_mid_motion_stops_the_robot_and_moves_nothing_more(record: Record)
     r, log = runner(record, fake, "repeatability", cycles=10, warmup_cycles=0, joints=[1])
 
     def on_event(e: Any) -> None:
-        if e.type == "step_finished" and e.data["index"] == 2:
-            fake.robot.move_time_s = 30.0  # the next motion takes long: abort lands in it
+        if e.type == "step_started" and e.data["index"] == 3:
+            fake.robot.move_time_s = 30.0  # step 3's motion takes long: abort lands in it
             threading.Timer(0.2, r.abort).start()
 
     r.subscribe(on_event)
@@ -163,7 +166,7 @@ def test_abort_mid_motion_stops_the_robot_and_moves_nothing_more(record: Record)
     fake.robot.assert_called("stop")
     moves_after_stop = fake.robot.calls[[c[0] for c in fake.robot.calls].index("stop") :]
     assert not [c for c in moves_after_stop if c[0] == "move_joints"]
-    sid = r.session_id
+    sid = sid_of(r)
     assert record.get_session(sid).state == "aborted"
     assert len(record.captures(sid)) == 3  # everything captured before the abort is kept
     assert fake.robot.stopped  # the latch stays set: nothing moves until someone clears it
@@ -176,31 +179,31 @@ def test_controller_error_fails_the_session_and_keeps_the_captures(record: Recor
     )
     r, log = runner(record, fake, "repeatability", cycles=5, warmup_cycles=0, joints=[1])
     assert r.run() is RunnerState.FAILED
-    row = record.get_session(r.session_id)
+    row = record.get_session(sid_of(r))
     assert "Joint 1 limit" in (row.error or "")
     fake.robot.assert_called("stop")
     assert log.of("position"), "the position is read again after a motion error"
-    steps = record.steps(r.session_id)
+    steps = record.steps(sid_of(r))
     assert steps[-1].state == "failed"
     assert all(s.state == "done" for s in steps[:-1])
-    assert len(record.captures(r.session_id)) == len([s for s in steps if s.state == "done"])
+    assert len(record.captures(sid_of(r))) == len([s for s in steps if s.state == "done"])
 
 
 def test_camera_timeout_fails_the_session(record: Record, fake: FakeStation) -> None:
-    fake.camera.fail_on("grab", DeviceTimeoutError("no frame within 2 s"), nth=2)
+    fake.cam.fail_on("grab", DeviceTimeoutError("no frame within 2 s"), nth=2)
     r, _ = runner(record, fake, "repeatability", cycles=3, warmup_cycles=0, joints=[1])
     assert r.run() is RunnerState.FAILED
-    assert "no frame within 2 s" in (record.get_session(r.session_id).error or "")
-    assert len(record.captures(r.session_id)) == 1
+    assert "no frame within 2 s" in (record.get_session(sid_of(r)).error or "")
+    assert len(record.captures(sid_of(r))) == 1
 
 
 def test_operator_cancel_fails_the_validation_with_the_reason(record: Record, fake: FakeStation) -> None:
     fake.table.fail_on("move_to", OperatorCancelledError("the operator cancelled the move"), nth=3)
     r, _ = runner(record, fake, "validation", steps_per_side=2)
     assert r.run() is RunnerState.FAILED
-    row = record.get_session(r.session_id)
+    row = record.get_session(sid_of(r))
     assert "cancelled" in (row.error or "")
-    assert len(record.captures(r.session_id)) >= 1
+    assert len(record.captures(sid_of(r))) >= 1
 
 
 def test_disk_full_fails_cleanly_without_a_half_written_capture(
@@ -225,15 +228,18 @@ def test_disk_full_fails_cleanly_without_a_half_written_capture(
     monkeypatch.setattr(_images.os, "write", write)
     r, _ = runner(record, fake, "repeatability", cycles=5, warmup_cycles=0, joints=[1])
     assert r.run() is RunnerState.FAILED
-    row = record.get_session(r.session_id)
+    row = record.get_session(sid_of(r))
     assert "No space left on device" in (row.error or "")
-    caps = record.captures(r.session_id)
-    assert len(caps) == 2
-    assert len(record.measurements(r.session_id)) == 2
-    image_dir = record.data_dir / "images" / r.session_id
-    assert sorted(p.name for p in image_dir.iterdir()) == sorted(
-        p.split("/")[-1] for p in (c.path for c in caps)
-    )
+    caps = record.captures(sid_of(r))
+    # the third image found the disk full: no row and no file for it; what was grabbed after it (the
+    # store thread runs behind the arm) is still stored when the disk allows, never half-written
+    assert [c.step_index for c in caps][:2] == [0, 1]
+    assert 2 not in [c.step_index for c in caps]
+    assert len(record.measurements(sid_of(r))) == len(caps)
+    image_dir = record.data_dir / "images" / sid_of(r)
+    on_disk = sorted(p.name for p in image_dir.iterdir())
+    assert on_disk == sorted(c.path.split("/")[-1] for c in caps)  # no temporary or orphan file
+    assert [s.state for s in record.steps(sid_of(r))][2] == "failed"
 
 
 def test_a_second_session_is_refused_while_one_runs(record: Record, fake: FakeStation) -> None:
@@ -256,9 +262,9 @@ def test_reconcile_marks_dead_sessions_interrupted(record: Record) -> None:
 
 def test_resume_skips_completed_steps_and_recaptures_the_reference(record: Record, fake: FakeStation) -> None:
     r, _ = runner(record, fake, "repeatability", cycles=6, warmup_cycles=0, joints=[1])
-    r.subscribe(lambda e: r.abort() if e.type == "step_finished" and e.data["index"] == 3 else None)
+    r.subscribe(lambda e: r.abort() if e.type == "step_started" and e.data["index"] == 4 else None)
     assert r.run() is RunnerState.ABORTED
-    sid = r.session_id
+    sid = sid_of(r)
     first = len(record.captures(sid))
     again = FakeStation()
     plan = get_plan("repeatability")
@@ -273,7 +279,7 @@ def test_resume_skips_completed_steps_and_recaptures_the_reference(record: Recor
     assert [c.meta.get("resumed") for c in caps[first:]] == [True, None, None, None]
     cycles = sorted(c.meta["cycle"] for c in caps if c.meta["role"] == "cycle")
     assert cycles == list(range(6))
-    assert record.get_session(sid).results["tests"]["J1"]["n_cycles"] == 6
+    assert results_of(record, resumed)["tests"]["J1"]["n_cycles"] == 6
 
 
 def test_plan_parameters_are_validated_with_the_field_named() -> None:
@@ -304,7 +310,7 @@ def test_repeatability_points_spread_as_the_arm_scatters(record: Record, fake: F
     fake.robot._motion = jittery  # type: ignore[method-assign]
     r, _ = runner(record, fake, "repeatability", cycles=6, warmup_cycles=0, joints=[2])
     assert r.run() is RunnerState.SUCCEEDED
-    pts = np.array(record.get_session(r.session_id).results["tests"]["J2"]["points_mm"])
+    pts = np.array(results_of(record, r)["tests"]["J2"]["points_mm"])
     # the scene moves the crossing by (40, 20) px per degree of joint 1: 0.01 deg -> 0.447 px -> 4.47 um
     spread = np.linalg.norm(pts[1::2].mean(axis=0) - pts[0::2].mean(axis=0))
     assert 0.0040 < spread < 0.0050

@@ -123,7 +123,7 @@ def test_application_shell_prompt_commas_and_armstat():
 
 
 def test_by_default_the_prompt_comes_back_while_the_arm_moves_and_a_second_motion_is_held():
-    with start_twin(speed_pct=10, time_scale=10.0) as twin:  # 20 deg at 18 deg/s: 0.12 s at 10x
+    with start_twin(speed_pct=20, time_scale=1.0) as twin:  # 20 deg at 36 deg/s: 0.6 s
         term = Terminal(twin.port)
         try:
             term.type(b"joint 1 20\r")
@@ -310,13 +310,17 @@ def test_unplug_from_outside(twin_and_term):
 # ------------------------------------------------------------------ settings
 
 
-def test_fault_servo_stops_the_arm_and_the_robot_server_says_why(twin_and_term):
-    twin, term = twin_and_term
-    twin.inject("servo@1:Collision error on axis 1")
-    term.type(b"joint 1 30\r")
-    out = term.until(b")\r\n")
-    assert out.startswith(b"joint 1 30\r\n$ /sbin/robotsrv: Collision error on axis 1 (error code 0x")
-    assert twin.motion_log[-1].stopped
+def test_fault_servo_stops_the_arm_and_the_robot_server_says_why():
+    with start_twin(time_scale=1.0) as twin:  # 30 deg in about 0.46 s: the fault fires half-way
+        term = Terminal(twin.port)
+        try:
+            twin.inject("servo@1:Collision error on axis 1")
+            term.type(b"joint 1 30\r")
+            out = term.until(b")\r\n")
+            assert out.startswith(b"joint 1 30\r\n$ /sbin/robotsrv: Collision error on axis 1 (error code 0x")
+            assert twin.motion_log[-1].stopped
+        finally:
+            term.close()
 
 
 def test_fault_specs_parse():

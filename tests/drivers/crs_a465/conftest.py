@@ -16,7 +16,7 @@ from sim.controller import ControllerTwin
 # Short timeouts: a dropped reply costs a fraction of a second, not the real 3 s.
 FAST_LINK = LinkSettings(reply_timeout_s=0.3, home_timeout_s=2.0, resync_quiet_s=0.02)
 # The twin runs 100x faster than real: poll often, short margins.
-TWIN_MOTION = MotionSettings(deadline_margin_s=2.0, stall_timeout_s=1.0, poll_interval_s=0.005)
+TWIN_MOTION = MotionSettings(deadline_margin_s=1.0, stall_timeout_s=1.0, poll_interval_s=0.005)
 
 MODES = ("firmware", "blocking")
 """The twin's two motion modes: the firmware's (prompt at once, the arm moves on) and the older blocking."""

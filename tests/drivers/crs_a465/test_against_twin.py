@@ -142,7 +142,7 @@ def test_application_shell_reports_power_and_homing(make_twin, robot_on, mode):
 
 
 def test_a_motion_returns_only_once_the_arm_has_arrived(make_twin, robot_on, mode):
-    twin = twin_in(make_twin, mode, time_scale=20.0, repeat_sigma_deg=0.0)
+    twin = twin_in(make_twin, mode, time_scale=20.0, repeat_sigma_deg=0.0, backlash_deg=0.0, settle_deg=0.0)
     robot = robot_on(twin)
     robot.move_joints((20.0, 0.0, 90.0, 0.0, 90.0, 0.0))
     assert not twin.arm.moving()
@@ -233,7 +233,7 @@ def test_a_stop_between_two_motions_is_not_lost(make_twin, robot_on, mode):
 
 
 def test_a_servo_error_during_the_motion_is_raised(make_twin, robot_on, mode):
-    twin = twin_in(make_twin, mode, time_scale=5.0)  # 20 deg in about 70 ms
+    twin = twin_in(make_twin, mode, time_scale=1.0)  # 20 deg in about 0.35 s: the fault fires half-way
     robot = robot_on(twin)
     twin.inject("servo@2:Excessive lag error on axis 1")  # w0, then the joint move
     with pytest.raises(ServoError, match="Excessive lag error on axis 1"):

@@ -147,9 +147,9 @@ def test_move_joint_sends_one_relative_move_then_waits_for_arrival():
 
 
 def test_arrival_reports_the_servo_error_and_fails_only_when_gross():
+    # a still arm grossly away from the target is not taken as arrived: the stall timeout decides
     target = (1.0, 0.0, 90.0, 0.0, 90.0, 0.0)
     close = (1.02, 0.0, 90.0, 0.0, 90.0, 0.0)
-    far = (1.8, 0.0, 90.0, 0.0, 90.0, 0.0)
     with scripted_robot(
         [
             *connect_exchanges(),
@@ -165,15 +165,33 @@ def test_arrival_reports_the_servo_error_and_fails_only_when_gross():
             w2((0.8, 0, 90, 0, 90, 0)),
             w0(READY),
             w2((0.8, 0, 90, 0, 90, 0)),
-        ]
+        ],
+        motion=MotionSettings(stall_timeout_s=1e-6, deadline_margin_s=1.0, poll_interval_s=0.0),
     ) as (robot, _):
         robot.connect()
         robot.move_joint(1, 1.0)
         assert robot.last_arrival is not None
         assert robot.last_arrival.error_deg[0] == pytest.approx(0.02)
-        del far
         with pytest.raises(ArrivalError, match=r"joint 1 at 0\.800 deg, \+0\.800 deg from the target"):
             robot.move_joint(1, -1.0)
+
+
+def test_a_still_arm_far_from_a_commanded_target_has_not_arrived_yet():
+    # should w0 show the final target at once, an arm that has not started yet is not "arrived"
+    target = (0.0, 0.0, 90.0, 0.0, 90.0, 10.0)
+    mid = (0.0, 0.0, 90.0, 0.0, 90.0, 4.0)
+    with scripted_robot(
+        [
+            *connect_exchanges(),
+            w0(),
+            say("joint 6 10.000"),
+            *[e for q in (READY, READY, mid, target, target) for e in (w0(target), w2(q))],
+        ]
+    ) as (robot, _):
+        robot.connect()
+        robot.move_joint(6, 10.0)
+    assert robot.last_arrival is not None
+    assert robot.last_arrival.actual_deg == target
 
 
 def test_application_shell_separates_arguments_with_commas():
