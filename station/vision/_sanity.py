@@ -20,7 +20,8 @@ and its lands), by one ``remap`` per groove.
   besides the measured groove, at least half as deep and a third as wide, is a second groove, hence a
   second crossing.
 
-Cost: see ``bench`` notes in the README (about a tenth of a millisecond per 640x480 image).
+Cost: 0.6-0.7 ms of CPU per 640x480 frame on the (loaded, 2-core) build machine, a fifth of precise
+mode's time in the same run; a few dozen numpy calls, no per-pixel Python loop.
 """
 
 from __future__ import annotations
