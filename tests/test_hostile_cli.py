@@ -175,3 +175,15 @@ def test_the_table_driver_refuses_non_finite_inputs_before_asking(
         table.move_to(x, y, timeout_s=timeout)
     assert events == []  # nothing was asked
     assert broker.current() is None
+
+
+@pytest.mark.parametrize("source", ["/dev/zero", "fifo"])
+def test_a_scale_calibration_that_is_not_a_regular_file_is_refused(
+    capsys: pytest.CaptureFixture[str], good: Path, tmp_path: Path, source: str
+) -> None:
+    path = source
+    if source == "fifo":
+        path = str(tmp_path / "cal.json")
+        os.mkfifo(path)
+    err = usage_error(capsys, "measure", "--scale-calibration", path, str(good))
+    assert "not a regular file" in err
