@@ -127,7 +127,9 @@ def test_camera_write_error_is_clear_and_the_frame_is_kept(
     assert "No space left on device" in err
     assert "Traceback" not in err
     kept = Path(err.split("the frame was kept in ")[1].strip())
-    assert cv2.imread(str(kept), cv2.IMREAD_UNCHANGED).shape == (480, 640)
+    image = cv2.imread(str(kept), cv2.IMREAD_UNCHANGED)
+    assert image is not None
+    assert image.shape == (480, 640)
     kept.unlink()
 
 
