@@ -344,7 +344,6 @@ class FakeCamera(_FakeDevice):
         self.scene = scene or Scene()
         self._rng = np.random.default_rng(seed)
         self.grab_time_s = grab_time_s
-        self.connected = False
         self._next_id = 1
 
     def grab(self, timeout_s: float = 2.0) -> Frame:
