@@ -40,6 +40,7 @@ test: lint typecheck layers pytest
 
 bench: setup
 	$(BIN)/python -m bench
+	$(BIN)/python -m bench.station_bench
 
 clean:
 	rm -rf $(VENV) $(OUT) .mypy_cache .ruff_cache .pytest_cache

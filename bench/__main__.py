@@ -232,6 +232,11 @@ def render_speed(results: dict[str, Any], throughput: Throughput | None) -> str:
             f"efficiency {min(eff):.2f}-{max(eff):.2f} (median {med:.2f}; target >= {EFFICIENCY_TARGET}: "
             f"{_verdict(med, EFFICIENCY_TARGET, at_most=False)})"
         )
+        cap = throughput.capacity
+        lines.append(
+            f"machine's parallel capacity at the time ({throughput.jobs} copies of a CPU-bound job vs 1; "
+            f"1.0 = every process gets a core): {min(cap):.2f}-{max(cap):.2f}"
+        )
     return "\n".join(lines)
 
 

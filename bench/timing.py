@@ -4,8 +4,9 @@ Machines vary by up to 2x from run to run and other jobs share the cores, so eve
 the same rounds as the baseline, interleaved image by image (a burst of load hits all methods alike),
 on the same decoded images (decode excluded), on one core. Times are the thread's CPU time
 (``time.thread_time``): compute per image, not the time spent waiting for a core another job holds
-(under load, wall-clock times of the same code varied 3x within a minute). Each round gives a median ms per image per
-method and its ratio to the baseline's; the table shows the range over the rounds.
+(under load, wall-clock times of the same code varied 3x within a minute). Each round gives a
+median ms per image per method and its ratio to the baseline's; the table shows the range over the
+rounds.
 
 Throughput runs ``station measure --json`` as a user would (start-up included) on the same image
 files with ``--jobs 1`` and ``--jobs <cores>``, alternately, several times.
@@ -87,6 +88,7 @@ class Throughput:
     jobs: int
     single: list[float]
     parallel: list[float]
+    capacity: list[float]
 
     @property
     def efficiency(self) -> list[float]:
@@ -100,6 +102,7 @@ class Throughput:
             "files_per_s_jobs_1": self.single,
             "files_per_s_jobs_n": self.parallel,
             "efficiency": self.efficiency,
+            "machine_parallel_capacity": self.capacity,
         }
 
 
@@ -128,7 +131,27 @@ def station_throughput(files: Sequence[Path], *, jobs: int, repeats: int = 3) ->
                     f"{proc.stderr.decode(errors='replace')[-500:]}"
                 )
             out.append(len(files) / elapsed)
-    return Throughput(len(files), jobs, single, parallel)
+    return Throughput(len(files), jobs, single, parallel, parallel_capacity(jobs))
+
+
+_SPIN = "s = 0\nfor i in range(3_000_000):\n    s += i\n"
+
+
+def parallel_capacity(jobs: int, *, repeats: int = 3) -> list[float]:
+    """What the machine gives ``jobs`` processes right now: the time of one fixed CPU-bound Python
+    job over that of ``jobs`` copies run at once (1.0: each gets a whole core; other jobs on the
+    machine lower it). The throughput target can only be judged where this is near 1."""
+    out = []
+    for _ in range(repeats):
+        times = []
+        for n in (1, jobs):
+            t0 = time.perf_counter()
+            procs = [subprocess.Popen([sys.executable, "-c", _SPIN]) for _ in range(n)]
+            for p in procs:
+                p.wait()
+            times.append(time.perf_counter() - t0)
+        out.append(times[0] / times[1])
+    return out
 
 
 def cores() -> int:

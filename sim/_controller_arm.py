@@ -6,8 +6,9 @@ joint's maximum times the speed override; acceleration is not scaled [A]. ``time
 every duration (100 runs the arm 100x faster than real).
 
 Attained position: when a joint moves, it stops at the commanded angle plus a systematic offset,
-plus a backlash term signed by the direction of approach, plus Gaussian noise; then the encoder
-quantises it (``counts_per_deg``). A joint that did not move keeps its attained angle.
+plus a backlash term signed by the direction of approach, plus Gaussian noise, plus a servo residual
+that decays after the motion's end (``sim.arm_errors``); then the encoder quantises it
+(``counts_per_deg``). A joint that did not move keeps its attained angle.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from sim.arm_errors import attained_error, settle_residual, settle_start
 from station.kinematics import Kinematics
 
 log = logging.getLogger(__name__)
@@ -115,6 +117,8 @@ class ArmParameters:
     homing_extra_s: float
     time_scale: float
     log_limit: int = 1000
+    settle_deg: tuple[float, ...] = (0.0,) * JOINTS
+    settle_time_s: float = 0.05
 
 
 class Arm:
@@ -145,6 +149,9 @@ class Arm:
         self._att = start.copy()
         self._motion: _Motion | None = None
         self.motion_log: deque[MotionRecord] = deque(maxlen=params.log_limit)  # the last N moves
+        self.moves = 0  # motions started: the world's Cartesian error changes with each
+        self._settle = np.zeros(JOINTS)  # each joint's servo residual (deg) at the end of its last motion
+        self._settle_t0 = np.zeros(JOINTS)  # and when that motion ended (clock)
 
     # ---------------------------------------------------------------- reading
 
@@ -190,10 +197,13 @@ class Arm:
         with self._lock:
             self._update()
             m = self._motion
+            now = self._clock()
+            elapsed = (now - self._settle_t0) * self.params.time_scale
+            settling = settle_residual(self._settle, elapsed, self.params.settle_time_s)
             if m is None:
-                return self._att.copy()
-            s = m.fraction(self._clock())
-            return np.asarray(m.att_start + s * (m.att_end - m.att_start), dtype=float)
+                return self._att + settling
+            s = m.fraction(now)
+            return np.asarray(m.att_start + s * (m.att_end - m.att_start) + settling, dtype=float)
 
     def pulses(self, joints_deg: FloatArray) -> list[int]:
         return [round(v * c) for v, c in zip(joints_deg, self.params.counts_per_deg, strict=True)]
@@ -223,9 +233,15 @@ class Arm:
 
     def _attained(self, cmd_end: FloatArray, delta: FloatArray, previous: FloatArray) -> FloatArray:
         p = self.params
-        noise = self._rng.normal(0.0, 1.0, JOINTS) * np.asarray(p.repeat_sigma_deg)
-        error = np.asarray(p.systematic_deg) + np.sign(delta) * np.asarray(p.backlash_deg) + noise
+        error = attained_error(
+            self._rng,
+            delta,
+            sigma_deg=p.repeat_sigma_deg,
+            backlash_deg=p.backlash_deg,
+            systematic_deg=p.systematic_deg,
+        )
         moved = np.abs(delta) > 0.0
+        self._settle = np.where(moved, settle_start(self._rng, moved, p.settle_deg), self._settle)
         return np.where(moved, cmd_end + error, previous)
 
     def _start(self, target: FloatArray, kind: str) -> float:
@@ -242,6 +258,8 @@ class Arm:
         lead = int(np.argmax(times))
         duration = times[lead] / p.time_scale
         att_end = self._attained(target, delta, self._att)
+        self.moves += 1
+        self._settle_t0 = np.where(np.abs(delta) > 0.0, self._clock() + duration, self._settle_t0)
         self.motion_log.append(MotionRecord(kind, tuple(start.tolist()), tuple(target.tolist())))
         if duration <= 0.0:
             self._cmd, self._att = target.copy(), att_end
@@ -307,6 +325,7 @@ class Arm:
             now_cmd, now_att = self.commanded(), self.actual_exact()
             self._cmd, self._att = now_cmd, now_att
             self._motion = None
+            self._settle = np.zeros(JOINTS)  # frozen where it is, residual included
             last = self.motion_log[-1]
             self.motion_log[-1] = MotionRecord(
                 last.kind, last.start_deg, tuple(now_cmd.tolist()), stopped=True

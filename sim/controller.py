@@ -49,6 +49,7 @@ from sim._controller_faults import (
     parse_fault,
 )
 from sim._controller_shell import Outcome, Shell
+from sim.arm_errors import DEFAULT_ARM_ERRORS
 from station.kinematics import A465_JOINT_LIMITS_DEG, Kinematics
 
 log = logging.getLogger(__name__)
@@ -89,9 +90,20 @@ class TwinSettings(BaseModel):
     max_speed_deg_s: Six = (180.0, 180.0, 180.0, 172.0, 172.0, 172.0)
     accel_deg_s2: Six = (720.0, 720.0, 720.0, 1430.0, 1430.0, 1430.0)
     counts_per_deg: Six = (400000 / 360, 400000 / 360, 400000 / 360, 200000 / 360, 200000 / 360, 200000 / 360)
-    repeat_sigma_deg: Six = Field((0.001,) * 6, description="random part of the attained error (1 sigma)")
+    # the joint part of sim.arm_errors' model fitted to the seed's Table 2 (the Cartesian part is the world's)
+    repeat_sigma_deg: Six = Field(
+        DEFAULT_ARM_ERRORS.joints.sigma_deg, description="random part of the attained error (1 sigma)"
+    )
     systematic_deg: Six = Field((0.0,) * 6, description="constant part of the attained error")
-    backlash_deg: Six = Field((0.0,) * 6, description="attained error signed by the direction of approach")
+    backlash_deg: Six = Field(
+        DEFAULT_ARM_ERRORS.joints.backlash_deg, description="attained error signed by the approach direction"
+    )
+    settle_deg: Six = Field(
+        DEFAULT_ARM_ERRORS.joints.settle_deg, description="servo residual at the motion's end (1 sigma)"
+    )
+    settle_time_s: float = Field(
+        DEFAULT_ARM_ERRORS.joints.settle_time_s, gt=0, description="the residual's decay time (model s)"
+    )
     joint_limits_deg: tuple[tuple[float, float], ...] = A465_JOINT_LIMITS_DEG
     home_pose_deg: Six = (0.0,) * 6
     ready_pose_deg: Six = (0.0, 0.0, 90.0, 0.0, 90.0, 0.0)
@@ -108,7 +120,7 @@ class TwinSettings(BaseModel):
         " byte; the C500C's console runs at 57600); None: as fast as the pty (default)",
     )
 
-    @field_validator("repeat_sigma_deg", "systematic_deg", "backlash_deg", mode="before")
+    @field_validator("repeat_sigma_deg", "systematic_deg", "backlash_deg", "settle_deg", mode="before")
     @classmethod
     def _broadcast(cls, value: Any) -> Any:
         return _six(value)
@@ -148,6 +160,8 @@ class ControllerTwin:
             homing_extra_s=s.homing_extra_s,
             time_scale=s.time_scale,
             log_limit=s.log_limit,
+            settle_deg=s.settle_deg,
+            settle_time_s=s.settle_time_s,
         )
         self.arm = Arm(
             params,

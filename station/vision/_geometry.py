@@ -82,10 +82,11 @@ def centre(H: FloatArray, width_mm: float) -> tuple[tuple[float, float], tuple[f
     quadrilateral's diagonals.
     """
     half = width_mm / 2.0
-    origin = apply_homography(H, np.zeros((1, 2)))[0]
-    center_mm = (half - float(origin[0]), half - float(origin[1]))
-    px = apply_homography(np.asarray(np.linalg.inv(H), np.float64), np.array([[half, half]]))[0]
-    return center_mm, (float(px[0]), float(px[1]))
+    # T(0, 0) is T's last column, dehomogenised
+    h02, h12, h22 = (float(v) for v in H[:, 2])
+    center_mm = (half - h02 / h22, half - h12 / h22)
+    px = np.linalg.inv(H) @ np.array([half, half, 1.0])
+    return center_mm, (float(px[0] / px[2]), float(px[1] / px[2]))
 
 
 def edge_angle_deg(line: Line, *, vertical: bool) -> float:
@@ -108,7 +109,7 @@ def check_cross(
     outside the frame.
     """
     angles = {e: edge_angle_deg(lines[e], vertical=e in VERTICAL) for e in lines}
-    rotation = float(np.mean(list(angles.values())))
+    rotation = math.fsum(angles.values()) / len(angles)
     worst = max(angles.values(), key=abs)
     if abs(worst) > max_rotation_deg:
         raise rotated_too_far(worst, max_rotation_deg, seen="is", digits=1)
@@ -125,7 +126,8 @@ def check_cross(
                 f"the {first} and {second} edges differ by {abs(angles[first] - angles[second]):.1f} deg:"
                 " a groove's edges must be parallel"
             )
-    cx, cy = corners.mean(axis=0)
+    xs, ys = corners[:, 0].tolist(), corners[:, 1].tolist()
+    cx, cy = sum(xs) / len(xs), sum(ys) / len(ys)
     widths = []
     for (first, second), name in ((HORIZONTAL, "horizontal"), (VERTICAL, "vertical")):
         a1, b1, c1 = lines[first]
@@ -141,8 +143,6 @@ def check_cross(
             )
         widths.append(float(width))
     h, w = shape
-    if not (np.all(corners[:, 0] >= 0) and np.all(corners[:, 0] <= w - 1)):
-        raise GeometryError("the crossing is not inside the frame: move the camera over the crossing")
-    if not (np.all(corners[:, 1] >= 0) and np.all(corners[:, 1] <= h - 1)):
+    if not (all(0 <= v <= w - 1 for v in xs) and all(0 <= v <= h - 1 for v in ys)):  # NaN fails too
         raise GeometryError("the crossing is not inside the frame: move the camera over the crossing")
     return rotation, (widths[0], widths[1])

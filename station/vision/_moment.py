@@ -8,12 +8,22 @@ so the line fit cannot average it out. Paper mode keeps it faithfully; precise m
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 import numpy.typing as npt
 
 _DY, _DX = np.mgrid[-1:2, -1:2]
-_DX_FLAT = _DX.ravel().astype(np.float64)
-_DY_FLAT = _DY.ravel().astype(np.float64)
+#: (3, 9): the 3x3 patch's sum, x moment and y moment in one product (whole numbers: exact in float64).
+_MOMENTS_T = np.vstack([np.ones(9), _DX.ravel(), _DY.ravel()]).astype(np.float64)
+
+
+@lru_cache(maxsize=8)
+def _offsets(w: int) -> npt.NDArray[np.intp]:
+    """Flat-index offsets of a 3x3 neighbourhood in an image ``w`` pixels wide (row-major)."""
+    offsets = (_DY * w + _DX).ravel().astype(np.intp)
+    offsets.setflags(write=False)
+    return offsets
 
 
 def intensity_moment(
@@ -32,15 +42,18 @@ def intensity_moment(
     refined = points.astype(np.float64)
     if not valid.any():
         return refined, valid
-    xv, yv = x[valid], y[valid]
-    patch = raw[yv[:, None] + _DY.ravel()[None, :], xv[:, None] + _DX.ravel()[None, :]].astype(np.float64)
-    total = patch.sum(axis=1)
+    sel = np.flatnonzero(valid)
+    inner = sel.size == valid.size  # the usual case: no masks needed
+    xv, yv = (x, y) if inner else (x[sel], y[sel])
+    patch = raw.ravel()[_offsets(w)[:, None] + (yv * w + xv)[None, :]]  # (9, N), 8 bits
+    total, mx, my = _MOMENTS_T @ patch  # whole numbers: exact in float64
     ok = total > 0
-    safe = np.where(ok, total, 1.0)
-    refined_valid = refined[valid]
-    refined_valid[:, 0] = np.where(ok, xv + (patch @ _DX_FLAT) / safe, xv)
-    refined_valid[:, 1] = np.where(ok, yv + (patch @ _DY_FLAT) / safe, yv)
-    refined[valid] = refined_valid
-    valid_idx = np.flatnonzero(valid)
-    valid[valid_idx[~ok]] = False
+    if ok.all():
+        rx, ry = xv + mx / total, yv + my / total
+    else:
+        safe = np.where(ok, total, 1.0)
+        rx, ry = np.where(ok, xv + mx / safe, xv), np.where(ok, yv + my / safe, yv)
+        valid[sel[~ok]] = False
+    refined[sel, 0] = rx
+    refined[sel, 1] = ry
     return refined, valid

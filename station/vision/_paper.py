@@ -42,11 +42,30 @@ def paper_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
     problems: dict[Edge, str] = {}
     for horizontal, response in zip((True, False), operator_responses(filtered), strict=True):
         lo, hi, _, _ = cv2.minMaxLoc(response)
-        for edge, sign, peak in (
-            (_NEGATIVE_EDGE[horizontal], -1.0, -lo),
-            (_POSITIVE_EDGE[horizontal], 1.0, hi),
-        ):
-            outcome = _edge_fit(gray, response, sign, edge, peak, params)
+        polarities = ((_NEGATIVE_EDGE[horizontal], -1.0, -lo), (_POSITIVE_EDGE[horizontal], 1.0, hi))
+        # the threshold of each polarity (apply_threshold; none when its response is nowhere positive)
+        levels = [
+            max(threshold_level(peak, params.threshold), 0.0) if peak > 0 else None
+            for _, _, peak in polarities
+        ]
+        candidates = _above(response, [lv for lv in levels if lv is not None])
+        values = response.ravel()[candidates]
+        for (edge, sign, _), level in zip(polarities, levels, strict=True):
+            pixels = np.zeros((0, 2), np.intp)
+            if level is not None:
+                own = candidates[values > level] if sign > 0 else candidates[values < -level]
+                pixels = segment_edge_sparse(
+                    response,
+                    sign,
+                    edge,
+                    level,
+                    own,
+                    testheight=params.testheight,
+                    testwidth=params.testwidth,
+                    skip=params.skip,
+                    backoff=params.backoff_rows,
+                )
+            outcome = _edge_fit(gray, pixels, edge, params)
             if isinstance(outcome, str):
                 problems[edge] = outcome
             else:
@@ -56,35 +75,16 @@ def paper_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
     return fits
 
 
-def _pixels(response: Float32Image, sign: float, edge: Edge, peak: float, params: MeasureParams) -> IntArray:
-    """Stages 3-4 for one edge: the threshold and the TestBox scan (``segment_edge`` on the
-    thresholded response, computed on the pixels above the threshold only)."""
-    if peak <= 0.0:  # apply_threshold: nothing above the threshold
-        return np.zeros((0, 2), np.intp)
-    level = max(threshold_level(peak, params.threshold), 0.0)
-    # a scalar second operand is what OpenCV means; its stubs only name arrays
-    above = cv2.compare(response, -level if sign < 0 else level, cv2.CMP_LT if sign < 0 else cv2.CMP_GT)  # type: ignore[call-overload]
-    found = cv2.findNonZero(above)
-    if found is None:
-        return np.zeros((0, 2), np.intp)
-    return segment_edge_sparse(
-        response,
-        sign,
-        edge,
-        level,
-        found.reshape(-1, 2).astype(np.intp),
-        testheight=params.testheight,
-        testwidth=params.testwidth,
-        skip=params.skip,
-        backoff=params.backoff_rows,
-    )
+def _above(response: Float32Image, levels: list[float]) -> IntArray:
+    """Flat indices of the pixels whose |response| exceeds the lower of ``levels``: every pixel above
+    either polarity's threshold, in one pass (each edge then keeps its own)."""
+    if not levels:
+        return np.zeros(0, np.intp)
+    return np.flatnonzero(np.abs(response) > min(levels))
 
 
-def _edge_fit(
-    gray: Gray8, response: Float32Image, sign: float, edge: Edge, peak: float, params: MeasureParams
-) -> EdgeFit | str:
-    """Stages 3-6 for one edge: its fit, or why it was not found."""
-    pixels = _pixels(response, sign, edge, peak, params)
+def _edge_fit(gray: Gray8, pixels: IntArray, edge: Edge, params: MeasureParams) -> EdgeFit | str:
+    """Stages 5-6 for one edge's segmented pixels: its fit, or why it was not found."""
     refined, valid = intensity_moment(gray, pixels)
     pts = refined[valid]
     if len(pts) < params.min_edge_points:

@@ -107,28 +107,29 @@ def _profile_grid(
 
 @lru_cache(maxsize=16)
 def _moment_weights(n: int) -> npt.NDArray[np.float32]:
-    """(n, 2): ones and the positions 0.5 ... n - 0.5: the sum and first moment of n differences."""
-    weights = np.column_stack([np.ones(n), np.arange(n) + 0.5]).astype(np.float32)
+    """(2, n): ones and the positions 0.5 ... n - 0.5: the sum and first moment of n differences."""
+    weights = np.vstack([np.ones(n), np.arange(n) + 0.5]).astype(np.float32)
     weights.setflags(write=False)
     return weights
 
 
 @lru_cache(maxsize=16)
 def _ramp(n: int) -> npt.NDArray[np.float32]:
-    """(1, n) from 0 to 1: linear interpolation weights across a window of n samples."""
-    ramp = np.linspace(0.0, 1.0, n, dtype=np.float32)[None, :]
+    """(n, 1) from 0 to 1: linear interpolation weights across a window of n samples."""
+    ramp = np.linspace(0.0, 1.0, n, dtype=np.float32)[:, None]
     ramp.setflags(write=False)
     return ramp
 
 
 def _suppress_impulses(samples: npt.NDArray[np.float32], threshold: float) -> None:
-    """Replace isolated impulses (salt-and-pepper, hot pixels) in profiles across an edge, in place.
+    """Replace isolated impulses (salt-and-pepper, hot pixels) in profiles across an edge, in place
+    (``samples``: (sample, profile)).
 
     A clean blurred edge profile is monotonic, and the median of three neighbours leaves a monotonic
     sequence unchanged: only samples that differ from their 3-sample median by more than ``threshold``
     (DN) are replaced by it, so clean profiles are untouched and the estimator stays unbiased.
     """
-    a, b, c = samples[:, :-2], samples[:, 1:-1], samples[:, 2:]
+    a, b, c = samples[:-2], samples[1:-1], samples[2:]
     med = np.maximum(np.minimum(a, b), np.minimum(np.maximum(a, b), c))
     bad = np.abs(b - med) > threshold
     if bad.any():
@@ -184,10 +185,11 @@ def _profile_points(
             vertical[inside],
         )
     # one gather for every window: a vertical edge's window runs along a row (stride 1), a horizontal
-    # edge's down a column (stride w)
+    # edge's down a column (stride w). Layout (sample, profile): every step below works on whole
+    # contiguous rows and reduces over the first axis (numpy reduces short last axes 10-20x slower).
     start = np.where(vertical, along * w + base, base * w + along)
     stride = np.where(vertical, 1, w)
-    flat = start[:, None] + stride[:, None] * np.arange(n)[None, :]
+    flat = start[None, :] + np.arange(n)[:, None] * stride[None, :]
     samples = np.take(img, flat).astype(np.float32)
     if illumination is not None:
         # flat field: the illumination is smooth, linear over one window: divide the samples by it,
@@ -196,24 +198,24 @@ def _profile_points(
         xs = np.concatenate([np.where(vertical, base, along), np.where(vertical, end, along)])
         ys = np.concatenate([np.where(vertical, along, base), np.where(vertical, along, end)])
         v32 = illumination.at_pixels(xs, ys).astype(np.float32).reshape(2, -1)
-        samples /= v32[0][:, None] + (v32[1] - v32[0])[:, None] * _ramp(n)
+        samples /= v32[0][None, :] + (v32[1] - v32[0])[None, :] * _ramp(n)
     _suppress_impulses(samples, impulse_dn)
-    d = samples[:, 1:] - samples[:, :-1]
+    d = samples[1:] - samples[:-1]
     # The window of differences is exactly symmetric about mu: 2 half + 1 differences at positions
     # 0.5 ... 2 half + 0.5 from the first sample, the two end ones weighted by the fractions of their
     # pixels inside (1 - f and f, f = mu - floor(mu)), the others fully. The polarity cancels in the
     # centroid and the spread; only the strength takes its sign.
     frac = (mu - np.floor(mu)).astype(np.float32)
-    d[:, 0] *= 1.0 - frac
-    d[:, -1] *= frac
+    d[0] *= 1.0 - frac
+    d[-1] *= frac
     pos = np.arange(n - 1, dtype=np.float32) + np.float32(0.5)
-    moments = d @ _moment_weights(n - 1)  # (sum, sum of positions): one pass over the differences
-    raw = moments[:, 0].astype(np.float64)
+    moments = _moment_weights(n - 1) @ d  # (sum, sum of positions): one pass over the differences
+    raw = moments[0].astype(np.float64)
     strength = raw * _POLARITY[owner]
     safe = np.where(strength > 0, raw, 1.0)
-    rel = moments[:, 1].astype(np.float64) / safe
+    rel = moments[1].astype(np.float64) / safe
     spread = (
-        ((d * (pos[None, :] - rel[:, None].astype(np.float32)) ** 2).sum(axis=1) / safe)
+        ((d * (pos[:, None] - rel[None, :].astype(np.float32)) ** 2).sum(axis=0) / safe)
         if with_spread
         else None
     )
@@ -221,28 +223,39 @@ def _profile_points(
 
 
 class _Groups:
-    """Per-edge statistics of values grouped by edge (``owner`` sorted), each in a few array calls."""
+    """Per-edge statistics of values grouped by edge (``owner`` sorted), each in a few array calls.
+
+    A selection (boolean mask over all values) becomes the weight matrix ``onehot * sel`` (edges x
+    values): per-edge counts and sums are then one matrix product, and medians sort a padded
+    (edges x longest group) grid.
+    """
 
     def __init__(self, owner: npt.NDArray[np.intp]) -> None:
         self.owner = owner
         counts = np.bincount(owner, minlength=len(EDGES))
         self.counts = counts
-        self.slot = np.arange(owner.size) - (np.cumsum(counts) - counts)[owner]
         self.width = max(int(counts.max()), 1)
+        slot = np.arange(owner.size) - (np.cumsum(counts) - counts)[owner]
+        self.flatpos = owner * self.width + slot
+        self.onehot = (owner[None, :] == _ROWS[:, None]).astype(np.float64)
+
+    def weights(self, sel: npt.NDArray[np.bool_]) -> FloatArray:
+        """(edges, values): 1 where a value is selected and belongs to the edge."""
+        return self.onehot * sel[None, :]
 
     def count(self, sel: npt.NDArray[np.bool_]) -> npt.NDArray[np.intp]:
-        return np.bincount(self.owner[sel], minlength=len(EDGES))
+        return (self.onehot @ sel.astype(np.float64)).astype(np.intp)
 
-    def median(self, values: FloatArray, sel: npt.NDArray[np.bool_]) -> FloatArray:
-        """Per edge, the upper median of ``values[sel]`` (``fast_median``'s); inf for an empty group."""
-        grid = np.full((len(EDGES), self.width), np.inf)
-        grid[self.owner[sel], self.slot[sel]] = values[sel]
+    def median(
+        self, values: FloatArray, sel: npt.NDArray[np.bool_], n_sel: npt.NDArray[np.intp]
+    ) -> FloatArray:
+        """Per edge, the upper median of ``values[sel]`` (``fast_median``'s; ``n_sel``: the selected
+        count per edge); inf for an empty group."""
+        flat = np.full(len(EDGES) * self.width, np.inf)
+        flat[self.flatpos] = np.where(sel, values, np.inf)
+        grid = flat.reshape(len(EDGES), self.width)
         grid.sort(axis=1)
-        return grid[_ROWS, self.count(sel) // 2]
-
-    def sums(self, sel: npt.NDArray[np.bool_], *values: FloatArray) -> list[FloatArray]:
-        o = self.owner[sel]
-        return [np.bincount(o, weights=v, minlength=len(EDGES)).astype(np.float64) for v in values]
+        return grid[_ROWS, n_sel // 2]
 
 
 def _tls(
@@ -250,13 +263,11 @@ def _tls(
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Per edge, the total-least-squares line through its selected points (the principal axis):
     arrays (a, b, c) of ``a x + b y = c``."""
-    n = np.maximum(groups.count(sel), 1)
-    xs, ys = x[sel], y[sel]
-    sx, sy = groups.sums(sel, xs, ys)
-    mx, my = sx / n, sy / n
-    o = groups.owner[sel]
-    dx, dy = xs - mx[o], ys - my[o]
-    sxx, syy, sxy = groups.sums(sel, dx * dx, dy * dy, dx * dy)
+    wts = groups.weights(sel)
+    n = np.maximum(wts.sum(axis=1), 1.0)
+    mx, my = (wts @ x) / n, (wts @ y) / n
+    dx, dy = x - mx[groups.owner], y - my[groups.owner]
+    sxx, syy, sxy = wts @ (dx * dx), wts @ (dy * dy), wts @ (dx * dy)
     phi = 0.5 * np.arctan2(2.0 * sxy, sxx - syy)  # direction of the line
     nx, ny = -np.sin(phi), np.cos(phi)
     return nx, ny, nx * mx + ny * my
@@ -276,6 +287,8 @@ def _fit_edges(
     ok = np.ones(len(EDGES), bool)
 
     def fail(where: npt.NDArray[np.bool_], reason: Callable[[int], str]) -> None:
+        if not (where & ok).any():
+            return
         for i in np.flatnonzero(where & ok).tolist():
             problems[EDGES[i]] = reason(i)
         ok[where] = False
@@ -288,7 +301,7 @@ def _fit_edges(
             "it runs too close to the border; keep the groove corners 10 px or more inside the frame"
         ),
     )
-    contrast = groups.median(p.strength, np.ones(owner.size, bool))
+    contrast = groups.median(p.strength, np.ones(owner.size, bool), counts)
     fail(
         contrast < params.min_contrast_dn,
         lambda i: f"its contrast is {contrast[i]:.1f} DN (at least {params.min_contrast_dn} DN)",
@@ -305,10 +318,11 @@ def _fit_edges(
     la, lb, lc = models.lines()
     inliers = good & ok[owner]
     resid = la[owner] * x + lb[owner] * y - lc[owner]
+    n_in = groups.count(inliers)
     for _ in range(2 if last else 1):
-        med = groups.median(resid, inliers)
+        med = groups.median(resid, inliers, n_in)
         dev = np.abs(resid - med[owner])
-        sigma = np.maximum(1.4826 * groups.median(dev, inliers), 1e-3)
+        sigma = np.maximum(1.4826 * groups.median(dev, inliers, n_in), 1e-3)
         inliers = good & ok[owner] & (dev <= params.outlier_sigma * sigma[owner])
         n_in = groups.count(inliers)
         fail(n_in < 3, lambda i: "its points do not lie on a line")
@@ -318,16 +332,16 @@ def _fit_edges(
     flip = np.where(_VERTICAL, la < 0, lb < 0)
     sign = np.where(flip, -1.0, 1.0)
     la, lb, lc = la * sign, lb * sign, lc * sign
-    n_in = np.maximum(groups.count(inliers), 1)
-    (ss,) = groups.sums(inliers, resid[inliers] ** 2)
-    rms = np.sqrt(ss / n_in)
+    n_in = np.maximum(n_in, 1)
+    rms = np.sqrt(groups.weights(inliers) @ (resid * resid) / n_in)
     if last:  # earlier passes only steer the windows
         limit = params.residual_limit_px
         fail(rms > limit, lambda i: f"its points are not on a line (rms {rms[i]:.2f} px)")
     fits: dict[Edge, EdgeFit] = {}
     if last and not problems:
+        # the inliers keep the profiles' order, grouped by edge: one selection, split by the counts
+        points = np.split(np.column_stack([x[inliers], y[inliers]]), np.cumsum(n_in)[:-1])
         for i, edge in enumerate(EDGES):
-            sel = inliers & (owner == i)
             used = int(n_in[i])
             fits[edge] = EdgeFit(
                 name=edge,
@@ -336,11 +350,11 @@ def _fit_edges(
                 used=used,
                 removed=int(counts[i]) - used,
                 rms_px=float(rms[i]),
-                points=np.column_stack([x[sel], y[sel]]),
+                points=points[i],
             )
     spread = None
     if p.spread is not None and ok.all():
-        spread = float(np.sort(groups.median(p.spread, good))[len(EDGES) // 2])
+        spread = float(np.sort(groups.median(p.spread, good, n_good))[len(EDGES) // 2])
     with np.errstate(divide="ignore", invalid="ignore"):
         slope = np.where(_VERTICAL, -lb / la, -la / lb)
         intercept = np.where(_VERTICAL, lc / la, lc / lb)

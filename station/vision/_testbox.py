@@ -84,11 +84,13 @@ def scan_columns(
     visited = (cols % skip) == 0
     key = np.sort(cols[visited] * h + rows[visited])  # by column, then row
     col0 = np.arange(0, w, skip, dtype=np.intp) * h
-    end = np.searchsorted(key, col0 + h)
+    per_column = np.bincount(key // (h * skip), minlength=col0.size)
+    first = np.cumsum(per_column) - per_column  # each column's first accepted pixel, if any
+    end = first + per_column
     start = np.zeros(col0.size, np.intp)
     last_key = max(key.size - 1, 0)
+    idx = first  # with every start at row 0
     while True:
-        idx = np.searchsorted(key, col0 + start)
         hit = idx < end
         row = np.where(hit, key[np.minimum(idx, last_key)] - col0, -1) if key.size else np.full(col0.size, -1)
         following = np.zeros(col0.size, np.intp)
@@ -96,6 +98,7 @@ def scan_columns(
         if np.array_equal(following, start):
             break
         start = following
+        idx = np.searchsorted(key, col0 + start)
     found = np.flatnonzero(hit)
     return np.column_stack([found * skip, row[found]]).astype(np.intp).reshape(-1, 2)
 
@@ -165,21 +168,21 @@ def segment_edge_sparse(
 
     ``sign * response`` is the edge's operator response before its negative values are zeroed
     (``directional_responses``: ``top`` is -1 times the downward operator), ``level`` >= 0 the
-    threshold (values above it are kept, as ``apply_threshold`` keeps them) and ``candidates`` (N, 2)
-    ``(x, y)`` the pixels above it. Instead of
-    full-image running maxima (``acceptance_mask``), the three rules are checked on each candidate's
-    columns A, E and F gathered from the image; pixels below the threshold count as zero as they do
-    in the thresholded response.
+    threshold (values above it are kept, as ``apply_threshold`` keeps them) and ``candidates`` the
+    flat (row-major) indices of the pixels above it. Instead of full-image running maxima
+    (``acceptance_mask``), the three rules are checked on each candidate's columns A, E and F
+    gathered from the image; pixels below the threshold count as zero as they do in the
+    thresholded response.
     """
     h, w = response.shape
     axis, reverse = _SCAN[edge]
     # scan geometry: "across" runs along the scan (column A's direction), "along" from column to column
     n_across, n_along = (h, w) if axis == 0 else (w, h)
     s_across, s_along = (w, 1) if axis == 0 else (1, w)
-    x, y = candidates[:, 0], candidates[:, 1]
+    flat = candidates
+    y, x = np.divmod(flat, w)
     across, along = (y, x) if axis == 0 else (x, y)
     flat_img = response.ravel()
-    flat = y * w + x
     value = flat_img[flat]
     offsets = np.arange(-testheight, testheight + 1)
     steps = offsets * s_across
@@ -189,18 +192,19 @@ def segment_edge_sparse(
         ``pos``). A window position outside the image repeats the window's centre pixel instead:
         a duplicate changes neither the window's maximum nor whether any value passes the threshold,
         as the zero of the cut-off column does not."""
-        idx = centre[:, None] + steps[None, :]
+        # (window position, candidate) layout: the extremes reduce over the first, short axis (fast)
+        idx = centre[None, :] + steps[:, None]
         near = (pos < testheight) | (pos >= n_across - testheight)
         if near.any():
             r = np.flatnonzero(near)
-            k = pos[r, None] + offsets[None, :]
-            idx[r] = np.where((k >= 0) & (k < n_across), idx[r], centre[r, None])
+            k = pos[None, r] + offsets[:, None]
+            idx[:, r] = np.where((k >= 0) & (k < n_across), idx[:, r], centre[None, r])
         return flat_img[idx]
 
     # in the edge's polarity (sign * response); the thresholded response is that above the level, else 0
     # rule 2: C is the maximum of column A (ties allowed). Values below the threshold are below C's.
     a_win = window(flat, across)
-    keep = a_win.max(axis=1) <= value if sign > 0 else a_win.min(axis=1) >= value
+    keep = a_win.max(axis=0) <= value if sign > 0 else a_win.min(axis=0) >= value
     # rule 3: columns E and F, TESTWIDTH before and after C, each hold a value above the threshold
     keep &= (along >= testwidth) & (along < n_along - testwidth)
     if keep.any():
@@ -208,7 +212,7 @@ def segment_edge_sparse(
         f, a = flat[sel], across[sel]
         for side in (f - testwidth * s_along, f + testwidth * s_along):
             win = window(side, a)
-            keep[sel] &= win.max(axis=1) > level if sign > 0 else win.min(axis=1) < -level
+            keep[sel] &= win.max(axis=0) > level if sign > 0 else win.min(axis=0) < -level
     view_col = along[keep]
     view_row = n_across - 1 - across[keep] if reverse else across[keep]
     pts = scan_columns(view_col, view_row, (n_across, n_along), skip=skip, backoff=backoff)

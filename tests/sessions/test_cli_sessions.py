@@ -211,3 +211,58 @@ def test_a_killed_session_is_interrupted_and_resumes(tmp_path: Path) -> None:
         after = rec.captures(sid)
         assert {c.id for c in before} <= {c.id for c in after}  # nothing captured before the kill was lost
         assert any(c.meta.get("resumed") for c in after)  # the reference captured again
+
+
+def test_the_example_script_runs_a_repeatability_session(tmp_path: Path) -> None:
+    script = Path(__file__).resolve().parents[2] / "examples" / "repeatability.py"
+    p = subprocess.run(
+        [
+            sys.executable,
+            str(script),
+            "--sim",
+            "--cycles",
+            "3",
+            "--joints",
+            "1",
+            "5",
+            "--data",
+            str(tmp_path),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+    assert p.returncode == 0, p.stderr
+    assert "J1: RP" in p.stdout
+    assert "seed 0.05299" in p.stdout  # J5 beside the seed's Table 2
+    report = Path(p.stdout.split("report: ")[1].strip())
+    assert report.exists()
+
+
+def test_measure_with_the_stations_scale_calibration(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import cv2
+
+    from station.cli import main
+    from station.testing import draw_cross
+
+    image = tmp_path / "cross.png"
+    cv2.imwrite(str(image), draw_cross(center_px=(330.0, 250.0)))
+    cal = tmp_path / "scale-calibration.json"
+    cal.write_text(json.dumps({"groove_width_mm": 0.770, "u_mm": 0.0004, "session_id": "abcd1234ef56"}))
+    assert main(["measure", "--json", str(image)]) == 0
+    plain = last_json(capsys.readouterr().out)
+    assert main(["measure", "--json", "--scale-calibration", str(cal), str(image)]) == 0
+    calibrated = last_json(capsys.readouterr().out)
+    assert calibrated["diagnostics"]["scale_calibration"]["session_id"] == "abcd1234ef56"
+    assert calibrated["diagnostics"]["params"]["groove_width_mm"] == 0.770
+    ratio = calibrated["center_mm"][0] / plain["center_mm"][0]
+    assert abs(ratio - 0.770 / (25.4 / 32)) < 1e-6  # every length scales with the groove width
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"groove_width_mm": -1}')
+    with pytest.raises(SystemExit) as info:
+        main(["measure", "--json", "--scale-calibration", str(bad), str(image)])
+    assert info.value.code == 2
+    assert "not a scale calibration" in capsys.readouterr().err

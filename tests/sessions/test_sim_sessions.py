@@ -17,9 +17,10 @@ from sim.artifact import ArtifactSpec
 from sim.station import SimStation, build_sim_station
 from sim.world import WorldSpec
 from station.config import StationDevices
+from station.devices import Frame
 from station.metrology import fit_rigid, repeatability
 from station.plans import get_plan, parse_params
-from station.record import EventRow, Record
+from station.record import CaptureRow, EventRow, Record
 from station.runner import RunnerState, SessionRunner
 from tests.sessions.conftest import results_of, sid_of
 
@@ -50,44 +51,69 @@ def run(
 
 
 class TruthAtCaptures:
-    """Reads the world's truth at every capture (the world does not change between a grab and its event)."""
+    """The world's truth at every frame the camera delivers (read in the grab itself: the runner stores
+    frames behind the arm, so the world has moved on by the time a capture is recorded), keyed by the
+    frame id each capture's metadata carries; and the session's states and prompts (a listener)."""
 
-    def __init__(self, sim: SimStation) -> None:
-        self.sim = sim
+    def __init__(self, devices: StationDevices) -> None:
+        self.sim: SimStation = devices.truth
         self.artifact: dict[int, np.ndarray] = {}
         self.tool_point: dict[int, np.ndarray] = {}
+        self.states: list[str] = []
+        self.prompts: list[EventRow] = []
+        camera = devices.camera
+        real_grab = camera.grab
 
-    def __call__(self, event: EventRow) -> None:
-        if event.type != "image_captured":
-            return
+        def grab(timeout_s: float = 2.0) -> Frame:
+            frame = real_grab(timeout_s)
+            self._read(frame.frame_id)
+            return frame
+
+        camera.grab = grab  # type: ignore[method-assign]
+
+    def _read(self, frame_id: int) -> None:
         world = self.sim.world
-        self.artifact[event.data["capture_id"]] = world.artifact_pose()
+        self.artifact[frame_id] = world.artifact_pose()
         # where the optical axis meets the artifact plane, in artifact axes (mm)
         cam_in_art = np.linalg.inv(world.artifact_in_camera())
         o, d = cam_in_art[:3, 3], cam_in_art[:3, 2]
         s = -o[2] / d[2]
-        self.tool_point[event.data["capture_id"]] = (o + s * d)[:2]
+        self.tool_point[frame_id] = (o + s * d)[:2]
+
+    def __call__(self, event: EventRow) -> None:
+        if event.type == "state":
+            self.states.append(event.data["state"])
+        if event.type in ("prompt_raised", "prompt_answered"):
+            self.prompts.append(event)
+
+    def at(self, capture: CaptureRow, what: str = "artifact") -> np.ndarray:
+        table = self.artifact if what == "artifact" else self.tool_point
+        return table[capture.meta["frame_id"]]
 
 
 def test_validation_session_measures_the_true_table_displacements(record: Record) -> None:
     devices = sim_devices(seed=3)
-    truth = TruthAtCaptures(devices.truth)
+    truth = TruthAtCaptures(devices)
     runner = run(record, devices, "validation", truth)
     assert runner.state is RunnerState.SUCCEEDED, runner.error
     res = results_of(record, runner)
     caps = record.captures(sid_of(runner))
     assert len(caps) == 40
     # the artifact's true displacement, in its own axes (um), against what the station measured
-    R0 = truth.artifact[caps[0].id][:3, :3]
-    true_um = np.array(
-        [(R0.T @ (truth.artifact[c.id][:3, 3] - truth.artifact[caps[0].id][:3, 3]))[:2] for c in caps]
-    )
+    R0 = truth.at(caps[0])[:3, :3]
+    true_um = np.array([(R0.T @ (truth.at(c)[:3, 3] - truth.at(caps[0])[:3, 3]))[:2] for c in caps])
     measured_um = np.array([p["measured_um"] for p in res["positions"]])
     fit = fit_rigid(true_um * 1000.0, measured_um)
     assert fit.mean <= 0.10, f"mean error {fit.mean:.4f} um against the world's truth"
     assert fit.max <= 0.30, f"max error {fit.max:.4f} um against the world's truth"
     # and the comparison with the commanded pattern stays within the sim table's own imperfections
     assert res["mean_um"] < 0.2
+    # every position was a prompt to the operator, answered; the session waited on each
+    raised = [e for e in truth.prompts if e.type == "prompt_raised"]
+    answered = [e for e in truth.prompts if e.type == "prompt_answered"]
+    assert len(raised) == len(answered) >= 40
+    assert all(e.data["outcome"] == "confirmed" for e in answered)
+    assert truth.states.count("awaiting_operator") == len(raised)
 
 
 def test_validation_recovers_the_true_groove_width_with_backlash_on(record: Record) -> None:
@@ -105,7 +131,7 @@ def test_validation_recovers_the_true_groove_width_with_backlash_on(record: Reco
 
 def test_repeatability_agrees_with_the_worlds_truth(record: Record) -> None:
     devices = sim_devices(seed=7)
-    truth = TruthAtCaptures(devices.truth)
+    truth = TruthAtCaptures(devices)
     runner = run(record, devices, "repeatability", truth, cycles=10, warmup_cycles=1, joints=[1, 3, 5])
     assert runner.state is RunnerState.SUCCEEDED, runner.error
     sid = sid_of(runner)
@@ -113,7 +139,7 @@ def test_repeatability_agrees_with_the_worlds_truth(record: Record) -> None:
     caps = record.captures(sid)
     for test in ("J1", "J3", "J5"):
         pts = np.array(
-            [truth.tool_point[c.id] for c in caps if c.meta["test"] == test and c.meta["role"] == "cycle"]
+            [truth.at(c, "tool") for c in caps if c.meta["test"] == test and c.meta["role"] == "cycle"]
         )
         true_rp = repeatability(pts).rp
         assert abs(res["rp_mm"][test] - true_rp) <= 0.0005, (test, res["rp_mm"][test], true_rp)
@@ -143,3 +169,19 @@ def test_signs_keep_the_camera_away_from_the_artifact() -> None:
             assert height(moved) >= height(ref) - 1e-6, f"joint {j + 1} brings the camera closer"
     finally:
         devices.close_owned()
+
+
+def test_measured_rp_lies_in_the_monte_carlo_interval_of_the_configured_arm(record: Record) -> None:
+    """30 cycles of joint 5 measured through the camera, against the 95 % interval of RP over 80 Monte
+    Carlo runs of the configured error model propagated through the kinematics (truth space)."""
+    from sim.repeatability_truth import ProtocolSettings, simulate_repeatability
+
+    protocol = ProtocolSettings(cycles=30, warmup_cycles=3, joints=(5,), sequences=False)
+    mc = np.array([simulate_repeatability(seed=1000 + k, protocol=protocol).rp_mm["J5"] for k in range(80)])
+    lo, hi = np.quantile(mc, [0.025, 0.975])
+    runner = run(record, sim_devices(seed=11), "repeatability", cycles=30, warmup_cycles=3, joints=[5])
+    assert runner.state is RunnerState.SUCCEEDED, runner.error
+    measured = results_of(record, runner)["rp_mm"]["J5"]
+    assert lo <= measured <= hi, (
+        f"measured RP {measured:.5f} mm outside the Monte Carlo 95 % [{lo:.5f}, {hi:.5f}]"
+    )

@@ -10,16 +10,20 @@ import pytest
 
 from drivers.crs_a465 import open_robot
 from drivers.xy_table import ManualXYTable
+from sim.arm_errors import FlangeErrors
 from sim.station import SimStation
 from sim.world import TableImperfections, WorldSpec
 from station.vision import measure
 
-PERFECT = WorldSpec(table=TableImperfections(skew_deg=0.0, resolution_in=0.0, backlash_mm=0.0))
+PERFECT = WorldSpec(
+    table=TableImperfections(skew_deg=0.0, resolution_in=0.0, backlash_mm=0.0),
+    flange_errors=FlangeErrors.none(),
+)
 
 
 @pytest.fixture
 def station() -> Iterator[SimStation]:
-    with SimStation(PERFECT, repeat_sigma_deg=0.0) as s:
+    with SimStation(PERFECT, repeat_sigma_deg=0.0, settle_deg=0.0) as s:
         s.camera.connect()
         yield s
 

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from sim.arm_errors import FlangeErrors
 from sim.camera import SimCamera
 from sim.operator import SimOperator
 from sim.world import TableImperfections, World, WorldSpec, euler_xyz
@@ -15,7 +16,10 @@ from station.kinematics import rot_x, rot_y, rot_z
 from station.prompts import PromptBroker, PromptField
 from station.vision import measure
 
-PERFECT = WorldSpec(table=TableImperfections(skew_deg=0.0, resolution_in=0.0, backlash_mm=0.0))
+PERFECT = WorldSpec(
+    table=TableImperfections(skew_deg=0.0, resolution_in=0.0, backlash_mm=0.0),
+    flange_errors=FlangeErrors.none(),
+)
 
 
 def centre(world: World, seed: int = 0) -> np.ndarray:

@@ -142,7 +142,7 @@ def test_application_shell_reports_power_and_homing(make_twin, robot_on, mode):
 
 
 def test_a_motion_returns_only_once_the_arm_has_arrived(make_twin, robot_on, mode):
-    twin = twin_in(make_twin, mode, time_scale=20.0, repeat_sigma_deg=0.0)
+    twin = twin_in(make_twin, mode, time_scale=20.0, repeat_sigma_deg=0.0, backlash_deg=0.0, settle_deg=0.0)
     robot = robot_on(twin)
     robot.move_joints((20.0, 0.0, 90.0, 0.0, 90.0, 0.0))
     assert not twin.arm.moving()

@@ -92,7 +92,8 @@ def test_a_missing_port_exits_non_zero(capsys, tmp_path):
 
 
 def test_joint_returns_only_once_the_arm_has_arrived_on_a_firmware_like_controller(capsys, make_twin):
-    twin = make_twin(time_scale=1.0, repeat_sigma_deg=0.0)  # the prompt comes back at once [F]
+    # a perfect arm; the prompt comes back at once [F]
+    twin = make_twin(time_scale=1.0, repeat_sigma_deg=0.0, backlash_deg=0.0, settle_deg=0.0)
     assert not twin.settings.motion_blocks
     code, out, err = run(capsys, "--port", twin.port, "--json", "joint", "2", "5")
     assert (code, err) == (0, "")

@@ -173,6 +173,7 @@ def test_arrival_reports_the_servo_error_and_fails_only_when_gross():
         robot.connect()
         robot.move_joint(1, 1.0)
         assert robot.last_arrival is not None
+        assert robot.last_arrival.error_deg is not None
         assert robot.last_arrival.error_deg[0] == pytest.approx(0.02)
         with pytest.raises(ArrivalError, match=r"joint 1 at 0\.800 deg, \+0\.800 deg from the target"):
             robot.move_joint(1, -1.0)
