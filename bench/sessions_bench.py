@@ -6,8 +6,9 @@ Overhead per cycle = the cycle's period on the runner's thread (from one step's 
 - the twin's motion time for its moves (the trapezoid profiles it executes at the session's speed) - the
 plan's deliberate settle wait before the capture (``settle_s``, default 0.25 s) - the camera's grab
 time (the simulated camera renders a frame, which a real camera does not charge to the station). What
-remains is the station's own work on the arm's critical path: the driver's polling for arrival and the position read before a capture. Storing the PNG (fsync), measuring it and the record's
-rows run in the store thread behind the arm and show here only if they fall behind it.
+remains is the station's own work on the arm's critical path: the driver's polling for arrival and
+the position read before a capture. Storing the PNG (fsync), measuring it and the record's rows run
+in the store thread behind the arm and show here only if they fall behind it.
 
 ``python -m bench.sessions_bench [--cycles N] [--captures N]`` prints the numbers as JSON.
 """
