@@ -270,3 +270,10 @@ def test_sim_controller_serves_several_cli_calls_until_terminated(capsys, tmp_pa
 def test_sim_controller_rejects_a_bad_fault_spec(capsys):
     assert main(["sim", "controller", "--fault", "melt@1"]) == 2
     assert "kind must be one of" in capsys.readouterr().err
+
+
+def test_a_positional_swallowed_after_a_second_double_dash_exits_2(capsys):
+    """argparse skips a positional's type after a second ``--``: found by the fuzz suite of issue 13."""
+    code, _, err = run(capsys, "--sim", "joint", "1", "--", "--")
+    assert code == 2
+    assert "DEGREES: expected a number" in err
