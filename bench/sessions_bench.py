@@ -4,10 +4,11 @@ long session (capture 1,000 and capture 10,000).
 
 Overhead per cycle = the cycle's period on the runner's thread (from one step's start to the next's)
 - the twin's motion time for its moves (the trapezoid profiles it executes at the session's speed) - the
-camera's grab time (the simulated camera renders a frame, which a real camera does not charge to the
-station). What remains is the station's own work on the arm's critical path: the driver's polling for
-arrival and the position read before a capture. Storing the PNG (fsync), measuring it and the record's
-rows run in the store thread behind the arm and show here only if they fall behind it.
+plan's deliberate settle wait before the capture (``settle_s``, default 0.25 s) - the camera's grab
+time (the simulated camera renders a frame, which a real camera does not charge to the station). What
+remains is the station's own work on the arm's critical path: the driver's polling for arrival and
+the position read before a capture. Storing the PNG (fsync), measuring it and the record's rows run
+in the store thread behind the arm and show here only if they fall behind it.
 
 ``python -m bench.sessions_bench [--cycles N] [--captures N]`` prints the numbers as JSON.
 """
@@ -41,7 +42,7 @@ def _motion_time(twin: Any, start: tuple[float, ...], end: tuple[float, ...], sp
     )
 
 
-def overhead(cycles: int = 8, joint: int = 1, speed_pct: int = 80) -> dict[str, Any]:
+def overhead(cycles: int = 8, joint: int = 1, speed_pct: int = 80, settle_s: float = 0.25) -> dict[str, Any]:
     """Run a one-joint repeatability session on the simulated station at real time."""
     devices = build_sim_station(seed=0, time_scale=1.0)
     sim = devices.truth
@@ -68,7 +69,14 @@ def overhead(cycles: int = 8, joint: int = 1, speed_pct: int = 80) -> dict[str, 
     with tempfile.TemporaryDirectory() as tmp, Record(Path(tmp)) as record:
         plan = get_plan("repeatability")
         params = parse_params(
-            plan, {"cycles": cycles, "warmup_cycles": 0, "joints": [joint], "speed_pct": speed_pct}
+            plan,
+            {
+                "cycles": cycles,
+                "warmup_cycles": 0,
+                "joints": [joint],
+                "speed_pct": speed_pct,
+                "settle_s": settle_s,
+            },
         )
         runner = SessionRunner(record, plan, params, devices=devices)
         runner.subscribe(on_event)
@@ -91,12 +99,13 @@ def overhead(cycles: int = 8, joint: int = 1, speed_pct: int = 80) -> dict[str, 
         rows.append((period, motion, grab))
     table = np.array(rows[:-1], dtype=np.float64)  # the last cycle has no successor to time it by
     wall, motion_s, grab_s_arr = table[:, 0], table[:, 1], table[:, 2]
-    software = wall - motion_s - grab_s_arr
+    software = wall - motion_s - grab_s_arr - settle_s  # the settle is the plan's deliberate wait
     return {
         "cycles": cycles,
         "wall_s_per_cycle": float(wall.mean()),
         "motion_s_per_cycle": float(motion_s.mean()),
         "camera_s_per_cycle": float(grab_s_arr.mean()),
+        "settle_s_per_cycle": settle_s,
         "software_s_per_cycle": float(software.mean()),
         "software_over_motion": float(software.mean() / motion_s.mean()),
     }

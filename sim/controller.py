@@ -113,6 +113,12 @@ class TwinSettings(BaseModel):
         None, description="a symlink kept pointing at the current pty ('auto': in a temporary directory)"
     )
     faults: tuple[Fault, ...] = ()
+    line_baud: int | None = Field(
+        None,
+        gt=0,
+        description="pace what the twin sends as a serial line of this speed would (8N1: 10 bits a"
+        " byte; the C500C's console runs at 57600); None: as fast as the pty (default)",
+    )
 
     @field_validator("repeat_sigma_deg", "systematic_deg", "backlash_deg", "settle_deg", mode="before")
     @classmethod
@@ -189,6 +195,7 @@ class ControllerTwin:
         self._inbox = bytearray()
         self._last_was_cr = False
         self._scheduled: tuple[float, str] | None = None  # (monotonic time, robot-server error text)
+        self._line_free_at = 0.0  # line_baud: when the last byte sent has left the simulated line
 
     # ---------------------------------------------------------------- lifecycle
 
@@ -354,6 +361,11 @@ class ControllerTwin:
         if master is None:
             return
         data = text.encode("latin-1", errors="replace")
+        if self.settings.line_baud is not None and data:
+            # a byte leaves a serial line 10 bit-times after the previous one: hold it until then
+            now = time.monotonic()
+            self._line_free_at = max(now, self._line_free_at) + len(data) * 10.0 / self.settings.line_baud
+            time.sleep(self._line_free_at - now)
         while data and not self._closing.is_set():
             try:
                 written = os.write(master, data)

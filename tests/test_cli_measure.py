@@ -30,7 +30,7 @@ def opencv_drawn_cross(cx: float, cy: float, *, width_px: float, angle_deg: floa
         pts = np.array([[(x + 0.5) * s - 0.5, (y + 0.5) * s - 0.5] for x, y in corners])
         cv2.fillPoly(big, [np.round(pts * 16).astype(np.int32)], 35, lineType=cv2.LINE_AA, shift=4)
     small = cv2.resize(big, (640, 480), interpolation=cv2.INTER_AREA).astype(np.float32)
-    small = cv2.GaussianBlur(small, (0, 0), 1.2)
+    small = np.asarray(cv2.GaussianBlur(small, (0, 0), 1.2), dtype=np.float32)
     small += np.random.default_rng(seed).normal(0.0, 1.0, small.shape).astype(np.float32)
     return np.clip(np.rint(small), 0, 255).astype(np.uint8)
 

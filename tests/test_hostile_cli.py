@@ -127,7 +127,9 @@ def test_camera_write_error_is_clear_and_the_frame_is_kept(
     assert "No space left on device" in err
     assert "Traceback" not in err
     kept = Path(err.split("the frame was kept in ")[1].strip())
-    assert cv2.imread(str(kept), cv2.IMREAD_UNCHANGED).shape == (480, 640)
+    image = cv2.imread(str(kept), cv2.IMREAD_UNCHANGED)
+    assert image is not None
+    assert image.shape == (480, 640)
     kept.unlink()
 
 
@@ -175,3 +177,15 @@ def test_the_table_driver_refuses_non_finite_inputs_before_asking(
         table.move_to(x, y, timeout_s=timeout)
     assert events == []  # nothing was asked
     assert broker.current() is None
+
+
+@pytest.mark.parametrize("source", ["/dev/zero", "fifo"])
+def test_a_scale_calibration_that_is_not_a_regular_file_is_refused(
+    capsys: pytest.CaptureFixture[str], good: Path, tmp_path: Path, source: str
+) -> None:
+    path = source
+    if source == "fifo":
+        path = str(tmp_path / "cal.json")
+        os.mkfifo(path)
+    err = usage_error(capsys, "measure", "--scale-calibration", path, str(good))
+    assert "not a regular file" in err

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from station.batch import FileResult, measure_file, measure_files
+from station.cli import main
 from station.imageio import ImageFileError, read_image
 from station.vision import MeasureParams, measure
 from tests.hostile import cross, run_station, with_sbit, write_png_bomb
@@ -58,15 +59,17 @@ def test_a_3_mb_png_of_20000_px_square_rgba16_is_refused_before_decoding(tmp_pat
     assert done.returncode == 1
 
 
-def test_the_pixel_and_byte_caps_are_configurable(tmp_path: Path, good: Path) -> None:
+def test_the_pixel_and_byte_caps_are_configurable(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, good: Path
+) -> None:
     from station.imageio import ImageLimits, load_image
 
     with pytest.raises(ImageFileError, match=r"0\.1 Mpx limit"):
         load_image(good, limits=ImageLimits(max_pixels=100_000))
     with pytest.raises(ImageFileError, match="over the 1000 bytes limit"):
         load_image(good, limits=ImageLimits(max_bytes=1000))
-    done = run_station("measure", "--json", "--max-megapixels", "0.1", str(good))
-    assert "0.1 Mpx limit" in str(_lines(done.stdout)[0]["error"])
+    assert main(["measure", "--json", "-j", "1", "--max-megapixels", "0.1", str(good)]) == 1
+    assert "0.1 Mpx limit" in json.loads(capsys.readouterr().out)["error"]
 
 
 def test_a_fifo_among_the_files_is_refused_without_waiting(tmp_path: Path, good: Path) -> None:
@@ -164,17 +167,19 @@ def test_16_bit_files_with_10_12_14_bit_data_measure_as_their_8_bit_original(bit
     assert reference.diagnostics()["bit_depth"] == 8
 
 
-def test_bit_depth_comes_from_the_png_sbit_chunk_and_set_bit_depth_overrides_it(tmp_path: Path) -> None:
+def test_bit_depth_comes_from_the_png_sbit_chunk_and_set_bit_depth_overrides_it(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
     image, _ = cross(310.0, 230.0, 1.0)
     data = _bits(image, 12) // 2  # dim 12-bit data: its largest value fits in 11 bits
     ok, buf = cv2.imencode(".png", data)
     assert ok
     path = tmp_path / "sbit12.png"
     path.write_bytes(with_sbit(bytes(buf.tobytes()), 12))
-    done = run_station("measure", "--json", str(path))
-    assert _lines(done.stdout)[0]["diagnostics"]["bit_depth"] == 12  # type: ignore[index]
-    done = run_station("measure", "--json", "--set", "bit_depth=16", str(path))
-    assert _lines(done.stdout)[0]["ok"] is False  # 16-bit scaling: a blank frame
+    assert main(["measure", "--json", "-j", "1", str(path)]) == 0
+    assert json.loads(capsys.readouterr().out)["diagnostics"]["bit_depth"] == 12
+    assert main(["measure", "--json", "-j", "1", "--set", "bit_depth=16", str(path)]) == 1
+    assert json.loads(capsys.readouterr().out)["code"] == "image_quality"  # 16-bit scaling: blank
     plain = tmp_path / "plain.png"
     cv2.imwrite(str(plain), data)
     assert measure(read_image(plain)).diagnostics()["bit_depth"] == 12  # 2047 < 4096: read as 12
@@ -192,3 +197,18 @@ def test_the_front_door_refuses_formats_it_cannot_check(tmp_path: Path) -> None:
         load_image(tmp_path)
     with pytest.raises(ImageFileError, match="no such file"):
         load_image(tmp_path / "missing.png")
+
+
+def test_the_record_reads_captures_through_the_front_door(tmp_path: Path) -> None:
+    import hashlib
+
+    from station.record import RecordError, _images
+
+    fifo = tmp_path / "capture.png"
+    os.mkfifo(fifo)
+    with pytest.raises(RecordError, match="FIFO"):  # refused at once: opening it would block
+        _images.read_checked(fifo, "0" * 64)
+    bomb = write_png_bomb(tmp_path / "bomb.png", 40000, 40000)
+    sha = hashlib.sha256(bomb.read_bytes()).hexdigest()
+    with pytest.raises(RecordError, match="50 Mpx limit"):  # refused from the header, never decoded
+        _images.read_checked(bomb, sha)

@@ -1,15 +1,23 @@
 """Motion that outlives the prompt: expected durations, deadlines and the arrival test.
 
 ``joint`` and ``ready`` give the prompt back at once while the arm still moves [F], so the driver
-decides arrival itself from what it polls. The arm has arrived when the commanded position (``w0``)
-equals the target within the controller's resolution, the actual position (``w2``) has not changed
-by more than one encoder count between two polls, and ``w2`` is within ``arrival_tolerance_deg`` of
-the target (a still arm further away has not started yet, or has stopped short: the stall timeout
-decides). The deadline of a move is its expected duration (trapezoidal profile, configurable joint
-speeds and accelerations, at the current speed setting) times ``deadline_factor`` plus
-``deadline_margin_s``; a move fails earlier only when the position has not changed for
-``stall_timeout_s`` while the target is not reached. The speeds and accelerations are public figures
-of another model of the arm [A]; the deadline's factor leaves room for them to be wrong.
+decides arrival itself from what it polls. After ``joint`` the arm has arrived when the commanded
+position (``w0``) equals the target within the controller's resolution, and then a ``w2`` (actual
+position) is within ``arrival_tolerance_deg`` of the target and either armstat, read just before that
+``w2``, shows every axis done, or that ``w2`` is within one encoder count of the previous poll's (read
+at least ``poll_interval_s`` earlier, after ``w0`` reached the target). A still arm further away has not
+started yet, or has stopped short: the stall timeout decides. While the arm moves only ``w0`` is polled
+(each poll of a real console costs about 0.1 s of line time: ``w0``, ``w2`` and armstat are 570-650
+bytes at 57600 baud), and a poll that would still be on the line when the motion is expected to end
+waits for that end instead. After ``ready`` and ``home`` (end poses assumed) ``w0`` and ``w2`` must both
+be still over two polls and armstat show every axis done.
+
+The deadline of a move is its expected duration (trapezoidal profile, configurable joint speeds and
+accelerations, at the current speed setting) times ``deadline_factor`` plus ``deadline_margin_s``; a
+move fails earlier only when the position has not changed for ``stall_timeout_s`` while the target is
+not reached. The speeds and accelerations are public figures of another model of the arm [A]; the
+deadline's factor leaves room for them to be wrong, and a wrong figure only delays the poll that finds
+the arm arrived.
 """
 
 from __future__ import annotations
@@ -39,7 +47,15 @@ class MotionSettings(BaseModel):
     deadline_factor: float = Field(3.0, ge=1.0, description="deadline = expected duration x this + margin")
     deadline_margin_s: float = Field(5.0, ge=0.0)
     stall_timeout_s: float = Field(3.0, gt=0.0, description="no change this long, target not reached: fail")
-    poll_interval_s: float = Field(0.02, ge=0.0, description="pause between two polls of w0/w2")
+    poll_interval_s: float = Field(
+        0.02, ge=0.0, description="pause between two polls; two w2 compared for stillness are this far apart"
+    )
+    reuse_s: float = Field(
+        0.05,
+        ge=0.0,
+        description="a position read after arrival, with nothing sent since, stands for where() and for"
+        " the next move's start this long (0: always read again)",
+    )
     resolution_deg: float = Field(0.002, gt=0.0, description="w0 equals the target within this (3 decimals)")
     arrival_tolerance_deg: float = Field(
         0.5, gt=0.0, description="|w2 - target| beyond this after arrival is an error (gross difference)"
@@ -132,6 +148,27 @@ class ArrivalTracker:
         # w2 still but grossly away from the target: the motion may not have started yet (or the arm
         # stopped short); keep polling, the stall timeout decides
         return self.at_target(w0) and not self.gross(actual_deg)
+
+    def see_commanded(self, now_s: float, commanded: Sequence[float]) -> bool:
+        """Record a ``w0`` polled alone while the arm moves; True when it equals the target."""
+        self.polls += 1
+        w0 = tuple(commanded)
+        if w0 != self.last_w0:
+            self.last_change_s = now_s
+        self.last_w0 = w0
+        return self.at_target(w0)
+
+    def see_actual(self, now_s: float, actual_pulses: Sequence[int]) -> bool:
+        """Record a ``w2``; True when it is within one encoder count of the previous ``w2`` recorded."""
+        self.polls += 1
+        pulses = tuple(actual_pulses)
+        still = self.last_w2_pulses is not None and all(
+            abs(a - b) <= 1 for a, b in zip(pulses, self.last_w2_pulses, strict=True)
+        )
+        if not still:
+            self.last_change_s = now_s
+        self.last_w2_pulses = pulses
+        return still
 
     def gross(self, actual_deg: Sequence[float] | None) -> bool:
         """Whether the actual joints are further than ``arrival_tolerance_deg`` from the target."""

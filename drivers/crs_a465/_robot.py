@@ -4,7 +4,10 @@ One command at a time: consume the echo, wait for the prompt, look for a control
 reply (``_replies``). Motions are checked by the :class:`MotionGuard` before anything is written; an
 absolute move is composed from ``w0`` and single-joint relative ``joint`` moves (the system shell has no
 absolute multi-joint command [F]). ``joint`` and ``ready`` give the prompt back while the arm still
-moves [F], so after each the driver polls ``w0``/``w2`` until the arm has arrived (``_motion``).
+moves [F], so after each the driver polls until the arm has arrived (``_motion``): after ``joint``,
+``w0`` alone while the arm moves, then armstat and ``w2``; after ``ready`` and ``home``, ``w0``/``w2``
+pairs and armstat. The readings that proved an arrival stand for :meth:`CrsA465.where` and for the next
+move's start while nothing has been sent since and for at most ``MotionSettings.reuse_s``.
 
 The stop is best effort: ``stop()`` latches (every motion raises :class:`MotionStoppedError` until
 :meth:`CrsA465.clear_stop`), sends the halt key (Ctrl-Z by default), resynchronises the line and
@@ -151,6 +154,9 @@ class CrsA465:
         self.last_position: RobotPosition | None = None
         self.last_arrival: Arrival | None = None
         self.last_notice: str | None = None
+        # w0 and w2 read at an arrival, with the time the w2 reply was complete: where() and the next
+        # move's start reuse them for MotionSettings.reuse_s if nothing has been sent since
+        self._fresh: tuple[float, PositionReport, PositionReport] | None = None
 
     # ---------------------------------------------------------------- link
 
@@ -210,6 +216,7 @@ class CrsA465:
 
     def _resync(self) -> None:
         """Drop stale input, then type empty lines until the controller answers one with a bare prompt."""
+        self._fresh = None
         self._transport.drain()
         quick = max(self.link.resync_quiet_s, 2 * self.link.poll_s)
         for _ in range(3):
@@ -256,6 +263,7 @@ class CrsA465:
         ``watch``: a motion command; the point-of-control notice extends the deadline, a stop shortens it.
         """
         text = request.text(self.shell)
+        self._fresh = None  # whatever is sent, a reading taken before it no longer stands for now
         if self._dirty:
             self._resync()
         self._transport.write_line(text)
@@ -342,10 +350,27 @@ class CrsA465:
     def _read_commanded(self) -> tuple[float, ...]:
         return self._position(cmd.W0).joints_deg
 
+    def _fresh_reading(self) -> tuple[PositionReport, PositionReport] | None:
+        """``(w0, w2)`` read at the last arrival, if nothing was sent since and it is younger than
+        ``MotionSettings.reuse_s``: the arm was proven at rest then, and only a command moves it."""
+        fresh = self._fresh
+        if fresh is None or self._stopped.is_set() or not self._linked or not self._transport.is_open:
+            return None
+        at, w0, w2 = fresh
+        if self._clock() - at > self.motion.reuse_s:
+            self._fresh = None
+            return None
+        return w0, w2
+
+    def _start_commanded(self) -> tuple[float, ...]:
+        """The commanded position a relative move starts from: the arrival's ``w0`` while fresh, else read."""
+        fresh = self._fresh_reading()
+        return fresh[0].joints_deg if fresh is not None else self._read_commanded()
+
     # ---------------------------------------------------------------- reports
 
-    def _armstat(self) -> ArmStat:
-        stat = parse_armstat(self._run(cmd.ARMSTAT))
+    def _armstat(self, *, motion_poll: bool = False) -> ArmStat:
+        stat = parse_armstat(self._run(cmd.ARMSTAT, motion_poll=motion_poll))
         if stat.arm_type is not None:
             self._arm_type = stat.arm_type
         return stat
@@ -380,8 +405,17 @@ class CrsA465:
         )
 
     def where(self) -> RobotPosition:
-        """Attained (``w2``) and commanded (``w0``) joints, and the WORLD row of the attained position."""
+        """Attained (``w2``) and commanded (``w0``) joints, and the WORLD row of the attained position.
+
+        Right after a motion (within ``MotionSettings.reuse_s`` of the arrival, nothing sent since) the
+        readings that proved the arrival are returned instead of reading them again.
+        """
         with self._busy():
+            fresh = self._fresh_reading()
+            if fresh is not None:
+                w0, w2 = fresh
+                self.last_position = RobotPosition(w2.joints_deg, w0.joints_deg, w2.world_mm_deg)
+                return self.last_position
             self.last_position = self._where()
             return self.last_position
 
@@ -496,29 +530,72 @@ class CrsA465:
             " next motion"
         )
 
-    def _wait_arrival(
-        self, what: str, target: tuple[float, ...] | None, expected_s: float, limit_s: float, t0: float
+    def _poll_failed(self, what: str, exc: DeviceError) -> DeviceError:
+        if self._stopped.is_set():
+            return self._halted(what)
+        return self._may_have_moved(exc, what)
+
+    def _sleep_watching(self, seconds: float, what: str) -> None:
+        """Sleep ``seconds`` in steps of at most ``poll_interval_s``, raising at once if the stop latches."""
+        until = self._clock() + seconds
+        step = max(self.motion.poll_interval_s, 0.005)
+        while (left := until - self._clock()) > 0.0:
+            if self._stopped.is_set():
+                raise self._halted(what)
+            self._sleep(min(step, left))
+
+    def _wait_target(
+        self, what: str, target: tuple[float, ...], expected_s: float, limit_s: float, t0: float
     ) -> tuple[PositionReport, PositionReport]:
-        """Poll ``w0``/``w2`` until the arm has arrived (see ``_motion``); return the last two reports."""
-        tracker = ArrivalTracker(target, self.motion, started_s=self._clock())
+        """Wait until the arm has arrived at ``target``; return the ``w0`` and ``w2`` that prove it.
+
+        While the arm moves only ``w0`` is polled (the cheapest reply that can show the end of the
+        motion). Once ``w0`` equals the target, each poll reads armstat (where the shell has it), then
+        ``w2``: the arm has arrived when that ``w2`` is within ``arrival_tolerance_deg`` of the target
+        and either armstat, read just before it, shows every axis done, or it is within one encoder count
+        of the previous poll's ``w2`` (both read after ``w0`` reached the target).
+        """
+        settings = self.motion
+        expected_end = self._clock() + expected_s  # the prompt is back: the controller has the motion
+        tracker = ArrivalTracker(target, settings, started_s=self._clock())
+        w0: PositionReport | None = None
+        w2: PositionReport | None = None
+        w0_reply_s = 0.0  # how long the last w0 took to come back (the line's and controller's time)
         while True:
             if self._stopped.is_set():
                 raise self._halted(what)
+            done = False
+            fresh_w0 = w0 is None or not tracker.at_target(w0.joints_deg)
             try:
-                w0 = self._position(cmd.W0, motion_poll=True)
-                w2 = self._position(cmd.W2, motion_poll=True)
+                if fresh_w0:
+                    asked = self._clock()
+                    if asked < expected_end < asked + w0_reply_s:
+                        # this poll would still be on the line when the motion is expected to end: poll
+                        # at the end instead (a slow line then reads w0 once the arm is there)
+                        self._sleep_watching(expected_end - asked, what)
+                        asked = self._clock()
+                    w0 = self._position(cmd.W0, motion_poll=True)
+                    w0_reply_s = self._clock() - asked
+                assert w0 is not None
+                at_target = tracker.at_target(w0.joints_deg)
+                if at_target:
+                    if self.shell.has_armstat:
+                        done = self._armstat(motion_poll=True).moving is False
+                    w2 = self._position(cmd.W2, motion_poll=True)
             except (DeviceProtocolError, DeviceTimeoutError) as exc:
-                if self._stopped.is_set():
-                    raise self._halted(what) from exc
-                raise self._may_have_moved(exc, what) from exc
+                raise self._poll_failed(what, exc) from exc
             if self._stopped.is_set():
                 raise self._halted(what)
             now = self._clock()
-            arrived = tracker.update(now, w0.joints_deg, w2.pulses, w2.joints_deg)
-            if arrived and (target is not None or self._all_done()):
-                return w0, w2
-            if target is not None and tracker.stalled(now):
-                if tracker.at_target(w0.joints_deg):
+            if fresh_w0:
+                tracker.see_commanded(now, w0.joints_deg)
+            if at_target and w2 is not None:
+                still = tracker.see_actual(now, w2.pulses)
+                if (done or still) and not tracker.gross(w2.joints_deg):
+                    self._fresh = (now, w0, w2)
+                    return w0, w2
+            if tracker.stalled(now):
+                if at_target and w2 is not None:
                     self._arrived(what, target, w0, w2)  # at rest away from the target: says how far
                 axis, diff = worst_axis(w0.joints_deg, target)
                 raise ArrivalError(
@@ -526,6 +603,39 @@ class CrsA465:
                     f" {w0.joints_deg[axis - 1]:.3f} deg, {diff:+.3f} deg from the target, and nothing has"
                     f" moved for {self.motion.stall_timeout_s:g} s; read the position (where) before going on"
                 )
+            if now - t0 > limit_s:
+                attained = "not read" if w2 is None else _fmt(w2.joints_deg)
+                raise DeviceTimeoutError(
+                    f"{what}: the arm had not arrived after {limit_s:.3g} s (expected {expected_s:.3g} s x"
+                    f" {self.motion.deadline_factor:g} + {self.motion.deadline_margin_s:g} s); commanded"
+                    f" {_fmt(w0.joints_deg)}, attained {attained}; read the position (where)"
+                )
+            pause = self.motion.poll_interval_s
+            if not at_target and now < expected_end < now + pause:
+                pause = expected_end - now  # poll when the model says the motion ends
+            elif not at_target and expected_end <= now < expected_end + 5.0 * pause:
+                pause /= 10.0  # just past the model's end: look again soon (then back to the interval)
+            self._sleep(pause)
+
+    def _wait_still(
+        self, what: str, expected_s: float, limit_s: float, t0: float
+    ) -> tuple[PositionReport, PositionReport]:
+        """``ready`` and ``home`` (whose end poses are assumptions, so no target): poll ``w0``/``w2``
+        until both are still over two polls and armstat shows every axis done."""
+        tracker = ArrivalTracker(None, self.motion, started_s=self._clock())
+        while True:
+            if self._stopped.is_set():
+                raise self._halted(what)
+            try:
+                w0 = self._position(cmd.W0, motion_poll=True)
+                w2 = self._position(cmd.W2, motion_poll=True)
+            except (DeviceProtocolError, DeviceTimeoutError) as exc:
+                raise self._poll_failed(what, exc) from exc
+            if self._stopped.is_set():
+                raise self._halted(what)
+            now = self._clock()
+            if tracker.update(now, w0.joints_deg, w2.pulses, w2.joints_deg) and self._all_done():
+                return w0, w2
             if now - t0 > limit_s:
                 raise DeviceTimeoutError(
                     f"{what}: the arm had not arrived after {limit_s:.3g} s (expected {expected_s:.3g} s x"
@@ -549,7 +659,7 @@ class CrsA465:
         t0 = self._clock()
         self._command_motion(request, limit)
         what = request.text(self.shell)
-        w0, w2 = self._wait_arrival(what, end, expected, limit, t0)
+        w0, w2 = self._wait_target(what, end, expected, limit, t0)
         self._arrived(what, end, w0, w2)
         return w0.joints_deg
 
@@ -581,7 +691,7 @@ class CrsA465:
         except (InvalidArgumentError, TypeError, ValueError) as exc:
             raise rejected(str(exc)) from exc
         with self._busy():
-            start = self._read_commanded()
+            start = self._start_commanded()
             plan = self.guard.plan_single_joint_moves(start, [(axis, delta)])
             if not plan.steps:
                 log.info("joint %d: %+g deg rounds to no motion", axis, delta_deg)
@@ -594,7 +704,7 @@ class CrsA465:
         target = self._target(target_deg)
         self.guard.check_limits(target)
         with self._busy():
-            start = self._read_commanded()
+            start = self._start_commanded()
             plan = self._plan(target, start)
             self._finish(self._run_plan(plan), tuple(target))
 
@@ -627,7 +737,7 @@ class CrsA465:
         with self._busy():
             t0 = self._clock()
             self._command_motion(cmd.HOME, self.link.home_timeout_s)
-            w0, w2 = self._wait_arrival("home", None, 0.0, self.motion.deadline_margin_s, t0=self._clock())
+            w0, w2 = self._wait_still("home", 0.0, self.motion.deadline_margin_s, t0=self._clock())
             self.last_position = RobotPosition(w2.joints_deg, w0.joints_deg, w2.world_mm_deg)
             log.debug("home took %.3f s", self._clock() - t0)
             self._compare_pose("home", w0, self.motion.home_pose_deg)
@@ -647,7 +757,7 @@ class CrsA465:
             expected, limit = self._motion_deadline(start, far)
             t0 = self._clock()
             self._command_motion(cmd.READY, limit)
-            w0, w2 = self._wait_arrival("ready", None, expected, limit, t0)
+            w0, w2 = self._wait_still("ready", expected, limit, t0)
             self.last_position = RobotPosition(w2.joints_deg, w0.joints_deg, w2.world_mm_deg)
             self._compare_pose("ready", w0, ready_pose)
 
@@ -674,6 +784,7 @@ class CrsA465:
         """
         self._stopped.set()
         self._dirty = True
+        self._fresh = None
         if not (self._linked and self._transport.is_open):
             log.warning("stop latched on %s (not connected: nothing sent)", self.port_name)
             return

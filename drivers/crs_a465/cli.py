@@ -154,8 +154,23 @@ def _one_line(exc: ValidationError) -> str:
     return f"{option}: {first['msg'].lower()} (got {first.get('input')!r})"
 
 
+def _check_positionals(args: argparse.Namespace) -> None:
+    """argparse skips a positional's type after a second ``--`` (``joint 1 -- --`` gives ``[]``)."""
+    expected = {"axis": "AXIS", "degrees": "DEGREES"}
+    for name, label in expected.items():
+        value = getattr(args, name, None)
+        if value is None:
+            continue
+        if args.robot_command == "move-joints" and name == "degrees":
+            if not (isinstance(value, list) and all(isinstance(v, float) for v in value)):
+                raise _BadOptionError(f"{label}: expected six numbers, got {value!r}")
+        elif isinstance(value, list | str):
+            raise _BadOptionError(f"{label}: expected a number, got {value!r}")
+
+
 def _settings(args: argparse.Namespace) -> dict[str, Any]:
     """Every option value validated into the driver's settings before anything is opened."""
+    _check_positionals(args)
     baud = _number("--baud", args.baud, int)
     link: dict[str, Any] = {}
     if baud is not None and not args.sim:

@@ -14,8 +14,8 @@ from station.imageio import ImageFileError, read_file_bytes
 from station.vision import MeasureParams, parse_assignments
 from station.vision._params import allowed_range
 
-#: A camera model file is a few hundred bytes; anything far larger is not one.
-CAMERA_MODEL_MAX_BYTES = 1024 * 1024
+#: A camera model or scale calibration file is a few hundred bytes; anything far larger is not one.
+SMALL_FILE_MAX_BYTES = 1024 * 1024
 
 
 def bounded_int(name: str, low: int, high: int) -> Callable[[str], int]:
@@ -90,7 +90,7 @@ def _describe(exc: ValidationError) -> str:
 def load_camera_model_file(path: str) -> tuple[list[list[float]], list[float]]:
     """A camera model file, checked like any other input: a regular file of sensible size."""
     try:
-        read_file_bytes(path, max_bytes=CAMERA_MODEL_MAX_BYTES, what="camera model file")
+        read_file_bytes(path, max_bytes=SMALL_FILE_MAX_BYTES, what="camera model file")
     except ImageFileError as exc:
         raise CameraModelError(f"--camera-model {exc}") from None
     return load_camera_model(path)

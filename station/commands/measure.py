@@ -11,8 +11,14 @@ from tqdm import tqdm
 from station import scale_calibration
 from station.batch import FileResult, default_jobs, measure_files
 from station.commands import SubParsers
-from station.commands._common import add_measure_options, finite_float, params_from_args
-from station.imageio import DEFAULT_MAX_BYTES, DEFAULT_MAX_PIXELS, ImageLimits
+from station.commands._common import SMALL_FILE_MAX_BYTES, add_measure_options, finite_float, params_from_args
+from station.imageio import (
+    DEFAULT_MAX_BYTES,
+    DEFAULT_MAX_PIXELS,
+    ImageFileError,
+    ImageLimits,
+    read_file_bytes,
+)
 from station.report import measurement_rows
 
 
@@ -61,8 +67,13 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     params = params_from_args(parser, args)
     calibration: dict[str, object] | None = None
     if args.scale_calibration is not None:
-        try:
+        try:  # a regular file of sensible size first: a FIFO or /dev/zero would hang the read
+            read_file_bytes(
+                args.scale_calibration, max_bytes=SMALL_FILE_MAX_BYTES, what="scale calibration file"
+            )
             cal = scale_calibration.load(args.scale_calibration)
+        except ImageFileError as exc:
+            parser.error(f"--scale-calibration {exc}")
         except scale_calibration.ScaleCalibrationError as exc:
             parser.error(str(exc))
         if not any(a.split("=", 1)[0].strip().lower() == "groove_width_mm" for a in args.assignments):

@@ -45,7 +45,12 @@ class RepeatabilityParams(BaseModel):
     sequences: dict[str, list[Joints6]] = Field(default_factory=dict)
     speed_pct: int = Field(80, ge=1, le=100)
     frames_per_capture: int = Field(1, ge=1, le=100)
-    settle_s: float = Field(0.0, ge=0, le=600)
+    settle_s: float = Field(
+        0.25,
+        ge=0,
+        le=600,
+        description="wait after arrival before capturing: the servos settle (seed: ~0.25 s)",
+    )
     load_kg: float | None = Field(None, ge=0, le=100, description="recorded only")
     reference_joints_deg: Joints6 | None = None
 

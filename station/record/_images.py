@@ -18,6 +18,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from station.imageio import ImageFileError, decode_image, read_file_bytes
 from station.record._errors import RecordError, RecordWriteError
 
 # zlib level 1 for speed. Camera frames are noisy, so LZ77 matching finds little: for 8-bit frames
@@ -100,11 +101,11 @@ def sha256_file(path: Path) -> str:
 
 def read_checked(path: Path, sha256: str) -> npt.NDArray[np.uint8] | npt.NDArray[np.uint16]:
     """Decode a stored image after checking its bytes against the recorded sha256."""
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
+    try:  # through the station's one front door for image files (station/imageio.py)
+        data = read_file_bytes(path, what="image file")
+    except ImageFileError as exc:
         raise RecordError(
-            f"capture image {path} cannot be read: {exc.strerror}; restore it from a backup or an export"
+            f"capture image {path} cannot be read: {exc.reason}; restore it from a backup or an export"
         ) from exc
     actual = hashlib.sha256(data).hexdigest()
     if actual != sha256:
@@ -112,7 +113,7 @@ def read_checked(path: Path, sha256: str) -> npt.NDArray[np.uint8] | npt.NDArray
             f"capture image {path} changed since it was recorded (sha256 {actual[:12]}..., recorded "
             f"{sha256[:12]}...); restore the original from a backup or an export"
         )
-    image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
-    if image is None:
-        raise RecordError(f"capture image {path} is not a PNG OpenCV can decode")
-    return image  # type: ignore[return-value]
+    try:
+        return decode_image(data, name=path).image
+    except ImageFileError as exc:
+        raise RecordError(f"capture image {path} cannot be decoded: {exc.reason}") from exc

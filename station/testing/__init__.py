@@ -78,15 +78,38 @@ class _Recorder:
         self.assert_called(method, 0)
 
 
+class _FakeDevice(_Recorder):
+    """The lifecycle every fake shares: ``connect``/``close`` recorded, ``identity`` from ``MODEL``."""
+
+    MODEL = "fake device"
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.connected = False
+
+    def connect(self) -> None:
+        self._call("connect")
+        self.connected = True
+
+    def close(self) -> None:
+        self._call("close")
+        self.connected = False
+
+    def identity(self) -> DeviceIdentity:
+        return DeviceIdentity(model=self.MODEL, serial="fake-1", port="in-process", firmware=None)
+
+
 # --------------------------------------------------------------------------- robot
 
 
-class FakeRobot(_Recorder):
+class FakeRobot(_FakeDevice):
     """A six-joint arm that moves at once; limits, maximum step and a latched stop like the real driver.
 
     ``attained_error_deg`` adds a fixed offset to the attained position (to test arrival reporting);
     ``move_time_s`` sleeps in each motion (interruptible by ``stop``), for abort tests.
     """
+
+    MODEL = "fake A465"
 
     def __init__(
         self,
@@ -108,22 +131,11 @@ class FakeRobot(_Recorder):
         self.powered = powered
         self.homed = homed
         self.speed_pct = 100.0
-        self.connected = False
         self.stopped = False
         self._stop_event = threading.Event()
         self.listeners: list[Callable[[FloatArray], None]] = []
 
     # lifecycle
-    def connect(self) -> None:
-        self._call("connect")
-        self.connected = True
-
-    def close(self) -> None:
-        self._call("close")
-        self.connected = False
-
-    def identity(self) -> DeviceIdentity:
-        return DeviceIdentity(model="fake A465", serial="fake-1", port="in-process", firmware=None)
 
     # state
     def status(self) -> RobotStatus:
@@ -216,25 +228,15 @@ class FakeRobot(_Recorder):
 # --------------------------------------------------------------------------- table
 
 
-class FakeTable(_Recorder):
+class FakeTable(_FakeDevice):
     """An X-Y table that moves at once within its travel (mm); no operator."""
+
+    MODEL = "fake X-Y table"
 
     def __init__(self, travel_mm: tuple[float, float] = (-12.7, 12.7)) -> None:
         super().__init__()
         self.travel_mm = travel_mm
         self.pos = TablePosition(0.0, 0.0)
-        self.connected = False
-
-    def connect(self) -> None:
-        self._call("connect")
-        self.connected = True
-
-    def close(self) -> None:
-        self._call("close")
-        self.connected = False
-
-    def identity(self) -> DeviceIdentity:
-        return DeviceIdentity(model="fake X-Y table", serial="fake-1", port="in-process", firmware=None)
 
     def check_target(self, x_mm: float, y_mm: float) -> None:
         lo, hi = self.travel_mm
@@ -323,9 +325,11 @@ class Scene:
         return cx, cy
 
 
-class FakeCamera(_Recorder):
+class FakeCamera(_FakeDevice):
     """A camera that serves the frames it is given (in order, then the last one again as a new frame), or
     draws the artifact where ``scene`` puts it. ``grab_time_s`` sleeps in each grab."""
+
+    MODEL = "fake camera"
 
     def __init__(
         self,
@@ -340,19 +344,7 @@ class FakeCamera(_Recorder):
         self.scene = scene or Scene()
         self._rng = np.random.default_rng(seed)
         self.grab_time_s = grab_time_s
-        self.connected = False
         self._next_id = 1
-
-    def connect(self) -> None:
-        self._call("connect")
-        self.connected = True
-
-    def close(self) -> None:
-        self._call("close")
-        self.connected = False
-
-    def identity(self) -> DeviceIdentity:
-        return DeviceIdentity(model="fake camera", serial="fake-1", port="in-process", firmware=None)
 
     def grab(self, timeout_s: float = 2.0) -> Frame:
         self._call("grab", timeout_s)

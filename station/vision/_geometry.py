@@ -109,7 +109,7 @@ def check_cross(
     outside the frame.
     """
     angles = {e: edge_angle_deg(lines[e], vertical=e in VERTICAL) for e in lines}
-    rotation = float(np.mean(list(angles.values())))
+    rotation = math.fsum(angles.values()) / len(angles)
     worst = max(angles.values(), key=abs)
     if abs(worst) > max_rotation_deg:
         raise rotated_too_far(worst, max_rotation_deg, seen="is", digits=1)
@@ -126,7 +126,8 @@ def check_cross(
                 f"the {first} and {second} edges differ by {abs(angles[first] - angles[second]):.1f} deg:"
                 " a groove's edges must be parallel"
             )
-    cx, cy = corners.mean(axis=0)
+    xs, ys = corners[:, 0].tolist(), corners[:, 1].tolist()
+    cx, cy = sum(xs) / len(xs), sum(ys) / len(ys)
     widths = []
     for (first, second), name in ((HORIZONTAL, "horizontal"), (VERTICAL, "vertical")):
         a1, b1, c1 = lines[first]
@@ -142,8 +143,6 @@ def check_cross(
             )
         widths.append(float(width))
     h, w = shape
-    if not (np.all(corners[:, 0] >= 0) and np.all(corners[:, 0] <= w - 1)):
-        raise GeometryError("the crossing is not inside the frame: move the camera over the crossing")
-    if not (np.all(corners[:, 1] >= 0) and np.all(corners[:, 1] <= h - 1)):
+    if not (all(0 <= v <= w - 1 for v in xs) and all(0 <= v <= h - 1 for v in ys)):  # NaN fails too
         raise GeometryError("the crossing is not inside the frame: move the camera over the crossing")
     return rotation, (widths[0], widths[1])

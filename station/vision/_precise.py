@@ -339,8 +339,9 @@ def _fit_edges(
         fail(rms > limit, lambda i: f"its points are not on a line (rms {rms[i]:.2f} px)")
     fits: dict[Edge, EdgeFit] = {}
     if last and not problems:
+        # the inliers keep the profiles' order, grouped by edge: one selection, split by the counts
+        points = np.split(np.column_stack([x[inliers], y[inliers]]), np.cumsum(n_in)[:-1])
         for i, edge in enumerate(EDGES):
-            sel = inliers & (owner == i)
             used = int(n_in[i])
             fits[edge] = EdgeFit(
                 name=edge,
@@ -349,7 +350,7 @@ def _fit_edges(
                 used=used,
                 removed=int(counts[i]) - used,
                 rms_px=float(rms[i]),
-                points=np.column_stack([x[sel], y[sel]]),
+                points=points[i],
             )
     spread = None
     if p.spread is not None and ok.all():

@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 import pytest
 
 from station.record import Record, RecordError
@@ -22,8 +23,11 @@ def _fill(rec: Record) -> str:
         rec.begin_step(s.id, step, f"position {step}", {"target_um": [step * 5.08, 0.0]})
         rec.add_event(s.id, "step_started", {"index": step})
         for frame in range(2):
-            dtype = np.uint16 if step == 2 else np.uint8
-            image = rng.integers(0, np.iinfo(dtype).max, size=(40, 56), dtype=dtype)
+            image: npt.NDArray[np.uint8] | npt.NDArray[np.uint16]
+            if step == 2:
+                image = rng.integers(0, np.iinfo(np.uint16).max, size=(40, 56), dtype=np.uint16)
+            else:
+                image = rng.integers(0, np.iinfo(np.uint8).max, size=(40, 56), dtype=np.uint8)
             cap = rec.save_capture(s.id, step, frame, image, timestamp_s=step + frame / 10, meta={"f": frame})
             rec.add_event(s.id, "image_captured", {"capture_id": cap.id})
             result = {"ok": True, "center_px": [20.0 + step, 28.0], "center_mm": [0.001 * step, 0.0]}

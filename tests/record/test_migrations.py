@@ -9,6 +9,7 @@ from alembic import command
 from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
 
+import station
 from station.record import Record
 from station.record._engine import MIGRATIONS, _config, head_revision, upgrade
 from station.record._schema import metadata
@@ -51,7 +52,8 @@ def test_reopening_keeps_the_data(tmp_path: Path, record_url: str | None) -> Non
 
 
 def test_migrations_ship_inside_the_package() -> None:
-    assert MIGRATIONS.is_relative_to(Path(__import__("station").__file__).parent)
+    assert station.__file__ is not None  # a regular package, not a namespace one
+    assert MIGRATIONS.is_relative_to(Path(station.__file__).parent)
     assert (MIGRATIONS / "env.py").is_file()
     assert sorted(p.name for p in (MIGRATIONS / "versions").glob("0*.py")) == ["0001_initial.py"]
     pyproject = (Path(__file__).parents[2] / "pyproject.toml").read_text()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 from pathlib import Path
+from typing import Any, TypedDict
 
 import numpy as np
 import pytest
@@ -11,7 +12,17 @@ import pytest
 from station.record import Record, RecordError, RecordNotFoundError
 from tests.record.conftest import StepClock
 
-SNAPSHOT = {
+
+class Snapshot(TypedDict):
+    """What ``Record.create_session`` takes besides the kind, as keyword arguments (``**SNAPSHOT``)."""
+
+    params: dict[str, Any]
+    config: dict[str, Any]
+    identities: dict[str, Any]
+    software: dict[str, Any]
+
+
+SNAPSHOT: Snapshot = {
     "params": {"cycles": 30, "joints": [1, 2, 3]},
     "config": {"camera": {"kind": "sim"}, "reference_pose": [0.0, -30.0, 90.0, 0.0, 30.0, 0.0]},
     "identities": {"robot": {"model": "A465", "firmware": "C500C 2.1"}},
@@ -96,8 +107,9 @@ def test_parent_must_exist(record: Record) -> None:
 def test_rejects_what_json_cannot_hold(record: Record) -> None:
     with pytest.raises(TypeError, match="params must be a dict"):
         record.create_session("validation", **{**SNAPSHOT, "params": [1, 2]})  # type: ignore[arg-type]
+    unstorable: Snapshot = {**SNAPSHOT, "config": {"x": object()}}
     with pytest.raises(TypeError, match="cannot store a object"):
-        record.create_session("validation", **{**SNAPSHOT, "config": {"x": object()}})
+        record.create_session("validation", **unstorable)
 
 
 def test_url_hides_the_password(tmp_path: Path) -> None:

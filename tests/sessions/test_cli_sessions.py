@@ -238,3 +238,31 @@ def test_the_example_script_runs_a_repeatability_session(tmp_path: Path) -> None
     assert "seed 0.05299" in p.stdout  # J5 beside the seed's Table 2
     report = Path(p.stdout.split("report: ")[1].strip())
     assert report.exists()
+
+
+def test_measure_with_the_stations_scale_calibration(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import cv2
+
+    from station.cli import main
+    from station.testing import draw_cross
+
+    image = tmp_path / "cross.png"
+    cv2.imwrite(str(image), draw_cross(center_px=(330.0, 250.0)))
+    cal = tmp_path / "scale-calibration.json"
+    cal.write_text(json.dumps({"groove_width_mm": 0.770, "u_mm": 0.0004, "session_id": "abcd1234ef56"}))
+    assert main(["measure", "--json", str(image)]) == 0
+    plain = last_json(capsys.readouterr().out)
+    assert main(["measure", "--json", "--scale-calibration", str(cal), str(image)]) == 0
+    calibrated = last_json(capsys.readouterr().out)
+    assert calibrated["diagnostics"]["scale_calibration"]["session_id"] == "abcd1234ef56"
+    assert calibrated["diagnostics"]["params"]["groove_width_mm"] == 0.770
+    ratio = calibrated["center_mm"][0] / plain["center_mm"][0]
+    assert abs(ratio - 0.770 / (25.4 / 32)) < 1e-6  # every length scales with the groove width
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"groove_width_mm": -1}')
+    with pytest.raises(SystemExit) as info:
+        main(["measure", "--json", "--scale-calibration", str(bad), str(image)])
+    assert info.value.code == 2
+    assert "not a scale calibration" in capsys.readouterr().err

@@ -22,6 +22,8 @@ REF = (0.0, 30.0, 60.0, 0.0, 90.0, 0.0)
 
 def runner(record: Record, fake: FakeStation, kind: str, **params: Any) -> tuple[SessionRunner, EventLog]:
     plan = get_plan(kind)
+    if kind == "repeatability":
+        params.setdefault("settle_s", 0.0)  # the fake arm settles at once
     r = SessionRunner(record, plan, parse_params(plan, params), devices=fake.devices())
     log = EventLog()
     r.subscribe(log)

@@ -211,7 +211,7 @@ def test_the_world_follows_the_twins_motion_counter_and_true_centres_replay_capt
             clock[0] += twin.arm.move_joint(5, 10.0) + 1.0
             clock[0] += twin.arm.move_joint(5, -10.0) + 1.0
             assert world.moves() == twin.arm.moves
-            joints.append(twin.arm.actual_exact())
+            joints.append(twin.arm.actual_exact().tolist())
             moves.append(twin.arm.moves)
             seen.append(world.center_mm(tool_point=True))
     finally:

@@ -18,7 +18,7 @@ BARE = replace(QUIET, name="bare", texture_rms_dn=0.0, glints_per_mm=0.0, scratc
 POSE = pose_for_center_px(321.0, 243.0, rotation_deg=2.5, tilt_x_deg=0.3)
 
 
-def _frame(pose=POSE, preset=QUIET, seed: int = 0, **kw):  # type: ignore[no-untyped-def]
+def _frame(pose=POSE, preset=QUIET, seed: int = 0, **kw):
     return render(pose, preset=preset, rng=np.random.default_rng(seed), **kw)[0].astype(np.float64)
 
 

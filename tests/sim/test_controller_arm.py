@@ -72,7 +72,7 @@ def test_a_move_takes_its_time_and_is_a_straight_line_in_joint_space():
     arm = make_arm(clock)
     arm.speed_pct = 50
     target = np.array([20.0, -10.0, 90.0, 0.0, 90.0, 0.0])
-    duration = arm.move_to(target, "test")
+    duration = arm.move_to(target.tolist(), "test")
     assert duration == pytest.approx(trapezoid_time(20.0, 90.0, 720.0))
     clock.t += duration / 2
     assert arm.moving()

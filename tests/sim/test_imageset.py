@@ -64,6 +64,7 @@ def test_validation_set_files(validation_set: Path) -> None:
     names = sorted(p.name for p in validation_set.iterdir())
     assert names == sorted([f"img_{k:03d}.png" for k in range(40)] + ["displacements.csv", "truth.json"])
     image = cv2.imread(str(validation_set / "img_017.png"), cv2.IMREAD_UNCHANGED)
+    assert image is not None
     assert image.dtype == np.uint8
     assert image.shape == (480, 640)
 

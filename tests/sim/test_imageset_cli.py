@@ -77,6 +77,7 @@ def test_render_one_image_with_truth(tmp_path: Path, capsys: pytest.CaptureFixtu
     assert main([*argv, "--preset", "hard", "--seed", "2", "--truth", str(truth_json)]) == 0
     assert capsys.readouterr().out.strip() == str(png)
     image = cv2.imread(str(png), cv2.IMREAD_UNCHANGED)
+    assert image is not None
     assert image.shape == (480, 640)
     doc = json.loads(truth_json.read_text())
     assert doc["center_px"] == pytest.approx([300.25, 250.5])

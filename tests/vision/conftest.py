@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import TypedDict, Unpack
 
 import numpy as np
 import pytest
@@ -10,6 +11,15 @@ import pytest
 from sim.artifact import Truth, pose_for_center_px, render
 
 Render = Callable[..., tuple[np.ndarray, Truth]]
+
+
+class PoseOptions(TypedDict, total=False):
+    """The keyword arguments ``pose_for_center_px`` takes besides the camera."""
+
+    rotation_deg: float
+    tilt_x_deg: float
+    tilt_y_deg: float
+    z_mm: float
 
 
 def random_cases(n: int, seed: int, *, max_rotation: float = 10.0) -> list[dict[str, float]]:
@@ -30,7 +40,7 @@ def random_cases(n: int, seed: int, *, max_rotation: float = 10.0) -> list[dict[
 @pytest.fixture
 def rendered() -> Render:
     def _render(
-        cx: float, cy: float, *, preset: str = "nominal", seed: int = 0, **pose: float
+        cx: float, cy: float, *, preset: str = "nominal", seed: int = 0, **pose: Unpack[PoseOptions]
     ) -> tuple[np.ndarray, Truth]:
         return render(pose_for_center_px(cx, cy, **pose), preset=preset, rng=np.random.default_rng(seed))
 

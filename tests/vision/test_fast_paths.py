@@ -138,7 +138,9 @@ def test_illumination_at_whole_pixels_equals_the_polynomial() -> None:
 @pytest.mark.parametrize("shape", [(480, 640), (203, 161)])
 def test_reduce_4x_is_the_mean_of_4x4_blocks_within_a_grey_level(shape: tuple[int, int]) -> None:
     rng = np.random.default_rng(6)
-    image = cv2.GaussianBlur(rng.integers(0, 256, shape).astype(np.uint8), (0, 0), 2.0)
+    image = np.asarray(
+        cv2.GaussianBlur(rng.integers(0, 256, shape).astype(np.uint8), (0, 0), 2.0), dtype=np.uint8
+    )
     small = reduce_4x(image)
     h, w = shape[0] // 4, shape[1] // 4
     blocks = image[: 4 * h, : 4 * w].reshape(h, 4, w, 4).mean(axis=(1, 3))

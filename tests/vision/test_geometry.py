@@ -7,6 +7,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from station.vision import (
+    Edge,
     InvalidImageError,
     apply_homography,
     centre,
@@ -21,7 +22,7 @@ from station.vision._geometry import edge_angle_deg
 W = 0.79375
 
 
-def square_lines(x0: float, y0: float, side: float) -> dict[str, tuple[float, float, float]]:
+def square_lines(x0: float, y0: float, side: float) -> dict[Edge, tuple[float, float, float]]:
     return {
         "top": normal_form(0.0, y0, vertical=False),
         "bottom": normal_form(0.0, y0 + side, vertical=False),
@@ -53,7 +54,7 @@ def test_vertices_order_and_square_transform() -> None:
     corners = vertices(lines)
     assert_allclose(corners, [[100, 50], [180, 50], [180, 130], [100, 130]])
     H = square_homography(corners, W)
-    assert_allclose(apply_homography(H, corners), [[0, 0], [W, 0], [W, W], [0, W]], atol=1e-12)
+    assert_allclose(apply_homography(H, corners), [[0.0, 0.0], [W, 0.0], [W, W], [0.0, W]], atol=1e-12)
     center_mm, center_px = centre(H, W)
     assert_allclose(center_px, [140, 90], atol=1e-9)
     # 80 px per 0.79375 mm: the crossing is 140 px right and 90 px below the origin pixel (0, 0)

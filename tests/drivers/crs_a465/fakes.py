@@ -13,7 +13,7 @@ import time
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypedDict, Unpack
 
 import serial
 
@@ -26,6 +26,13 @@ PROMPT = "$ "
 class Exchange:
     sent: bytes
     reply: bytes
+
+
+class ReplyOptions(TypedDict, total=False):
+    """How ``say`` frames a reply: the prompt after it, and whether the command is echoed."""
+
+    prompt: str
+    echo: bool
 
 
 def say(command: str, *reply: str, prompt: str = PROMPT, echo: bool = True) -> Exchange:
@@ -187,21 +194,28 @@ def application_table(kind: str, joints: Iterable[float], world: Iterable[float]
 READY = (0.0, 0.0, 90.0, 0.0, 90.0, 0.0)
 
 
-def w0(joints: Iterable[float] = READY, **kw: str) -> Exchange:
+def w0(joints: Iterable[float] = READY, **kw: Unpack[ReplyOptions]) -> Exchange:
     return say("w0", *table("Commanded", joints), **kw)
 
 
-def w2(joints: Iterable[float] = READY, **kw: str) -> Exchange:
+def w2(joints: Iterable[float] = READY, **kw: Unpack[ReplyOptions]) -> Exchange:
     return say("w2", *table("Actual", joints), **kw)
 
 
-def arrived(joints: Iterable[float], polls: int = 2, **kw: str) -> list[Exchange]:
-    """The polls after a motion that find the arm at ``joints`` (w0 at target, w2 still over two polls)."""
+def arrived(joints: Iterable[float], **kw: Unpack[ReplyOptions]) -> list[Exchange]:
+    """The poll after a motion that finds the arm at ``joints``: w0 at the target, then armstat with
+    every axis done and w2 there."""
+    q = list(joints)
+    return [w0(q, **kw), say("armstat", *armstat_lines(), **kw), w2(q, **kw)]
+
+
+def still_polls(joints: Iterable[float], polls: int = 2, **kw: Unpack[ReplyOptions]) -> list[Exchange]:
+    """``ready``/``home``'s polls that find the arm still at ``joints`` (w0 and w2 over ``polls`` polls)."""
     q = list(joints)
     return [e for _ in range(polls) for e in (w0(q, **kw), w2(q, **kw))]
 
 
-def speed_report(percent: int = 50, **kw: str) -> Exchange:
+def speed_report(percent: int = 50, **kw: Unpack[ReplyOptions]) -> Exchange:
     return say("speed", f"Current Speed: {percent}% of max.", **kw)
 
 
@@ -247,5 +261,6 @@ def connect_exchanges(joints: Iterable[float] = READY, *, prompt: str = PROMPT) 
     ]
 
 
-FAST_MOTION = MotionSettings(deadline_margin_s=1.0, stall_timeout_s=0.5, poll_interval_s=0.0)
-"""Scripted ports answer at once: no pause between polls, short deadlines."""
+FAST_MOTION = MotionSettings(deadline_margin_s=1.0, stall_timeout_s=0.5, poll_interval_s=0.0, reuse_s=60.0)
+"""Scripted ports answer at once: no pause between polls, short deadlines; the readings of an arrival
+stand for the next move's start and where() until something is sent (never by age within a test)."""

@@ -92,7 +92,8 @@ def test_a_missing_port_exits_non_zero(capsys, tmp_path):
 
 
 def test_joint_returns_only_once_the_arm_has_arrived_on_a_firmware_like_controller(capsys, make_twin):
-    twin = make_twin(time_scale=1.0, repeat_sigma_deg=0.0)  # the prompt comes back at once [F]
+    # a perfect arm; the prompt comes back at once [F]
+    twin = make_twin(time_scale=1.0, repeat_sigma_deg=0.0, backlash_deg=0.0, settle_deg=0.0)
     assert not twin.settings.motion_blocks
     code, out, err = run(capsys, "--port", twin.port, "--json", "joint", "2", "5")
     assert (code, err) == (0, "")
@@ -269,3 +270,10 @@ def test_sim_controller_serves_several_cli_calls_until_terminated(capsys, tmp_pa
 def test_sim_controller_rejects_a_bad_fault_spec(capsys):
     assert main(["sim", "controller", "--fault", "melt@1"]) == 2
     assert "kind must be one of" in capsys.readouterr().err
+
+
+def test_a_positional_swallowed_after_a_second_double_dash_exits_2(capsys):
+    """argparse skips a positional's type after a second ``--``: found by the fuzz suite of issue 13."""
+    code, _, err = run(capsys, "--sim", "joint", "1", "--", "--")
+    assert code == 2
+    assert "DEGREES: expected a number" in err

@@ -45,6 +45,7 @@ from tests.drivers.crs_a465.fakes import (
     scripted_robot,
     silent,
     speed_report,
+    still_polls,
     table,
     w0,
     w2,
@@ -135,10 +136,11 @@ def test_status_on_the_application_shell_reads_armstat_and_its_speed_form():
 
 
 def test_move_joint_sends_one_relative_move_then_waits_for_arrival():
+    # while the arm moves only w0 is polled; once it is at the target, armstat (every axis done) and w2
     target = (0.0, -5.25, 90.0, 0.0, 90.0, 0.0)
     moving = (0.0, -2.0, 90.0, 0.0, 90.0, 0.0)
     with scripted_robot(
-        [*connect_exchanges(), w0(), say("joint 2 -5.250"), w0(moving), w2(moving), *arrived(target)]
+        [*connect_exchanges(), w0(), say("joint 2 -5.250"), w0(moving), w0(moving), *arrived(target)]
     ) as (robot, _):
         robot.connect()
         robot.move_joint(2, -5.25)
@@ -156,21 +158,22 @@ def test_arrival_reports_the_servo_error_and_fails_only_when_gross():
             w0(),
             say("joint 1 1.000"),
             w0(target),
+            armstat(),
             w2(close),
-            w0(target),
-            w2(close),
-            w0(target),
+            # the next move starts from the arrival's w0 (nothing sent since): no w0 before it
             say("joint 1 -1.000"),
             w0(READY),
+            armstat(),
             w2((0.8, 0, 90, 0, 90, 0)),
-            w0(READY),
+            armstat(),
             w2((0.8, 0, 90, 0, 90, 0)),
         ],
-        motion=MotionSettings(stall_timeout_s=1e-6, deadline_margin_s=1.0, poll_interval_s=0.0),
+        motion=MotionSettings(stall_timeout_s=1e-6, deadline_margin_s=1.0, poll_interval_s=0.0, reuse_s=60.0),
     ) as (robot, _):
         robot.connect()
         robot.move_joint(1, 1.0)
         assert robot.last_arrival is not None
+        assert robot.last_arrival.error_deg is not None
         assert robot.last_arrival.error_deg[0] == pytest.approx(0.02)
         with pytest.raises(ArrivalError, match=r"joint 1 at 0\.800 deg, \+0\.800 deg from the target"):
             robot.move_joint(1, -1.0)
@@ -185,7 +188,8 @@ def test_a_still_arm_far_from_a_commanded_target_has_not_arrived_yet():
             *connect_exchanges(),
             w0(),
             say("joint 6 10.000"),
-            *[e for q in (READY, READY, mid, target, target) for e in (w0(target), w2(q))],
+            w0(target),
+            *[e for q in (READY, READY, mid, target) for e in (armstat(), w2(q))],
         ]
     ) as (robot, _):
         robot.connect()
@@ -241,7 +245,7 @@ def test_move_joints_rounds_to_the_controllers_resolution():
 def test_move_joints_fails_when_the_arm_stops_short_of_the_target():
     # w0 and w2 never reach the target and stop changing: a stall, not success
     with scripted_robot(
-        [*connect_exchanges(), w0(), say("joint 1 10.000"), *arrived(READY)],
+        [*connect_exchanges(), w0(), say("joint 1 10.000"), w0(READY), w0(READY)],
         motion=MotionSettings(stall_timeout_s=1e-6, deadline_margin_s=1.0, poll_interval_s=0.0),
     ) as (robot, _):
         robot.connect()
@@ -272,13 +276,13 @@ def test_home_and_ready_wait_for_arrival_and_armstat_done():
         [
             *connect_exchanges(),
             say("home", *HOME_LINES),
-            *arrived(home),
+            *still_polls(home),
             armstat(),
             w0(home),
             say("ready"),
-            *arrived(READY),
+            *still_polls(READY),
             armstat(moving=[3]),  # still and at rest per w0/w2, but armstat says axis 3 is not done
-            *arrived(READY, polls=1),
+            *still_polls(READY, polls=1),
             armstat(),
         ]
     ) as (robot, _):
@@ -289,7 +293,7 @@ def test_home_and_ready_wait_for_arrival_and_armstat_done():
 
 def test_ready_ending_elsewhere_than_the_configured_pose_warns(caplog):
     elsewhere = (0.0, 0.0, 90.0, 0.0, 0.0, 0.0)
-    with scripted_robot([*connect_exchanges(), w0(), say("ready"), *arrived(elsewhere), armstat()]) as (
+    with scripted_robot([*connect_exchanges(), w0(), say("ready"), *still_polls(elsewhere), armstat()]) as (
         robot,
         _,
     ):
@@ -344,7 +348,6 @@ def test_a_robot_server_error_during_the_motion_is_the_motions_error():
             w0(),
             say("joint 1 2.000"),
             w0(moving),
-            w2(moving),
             raw(
                 b"w0\r",
                 (

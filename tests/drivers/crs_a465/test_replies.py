@@ -251,6 +251,7 @@ def test_parses_armstat_and_leaves_what_is_not_said_unknown():
 )
 def test_maps_each_controller_error_text(line, error, code, axis):
     found = find_error([line], "joint 1 5")
+    assert found is not None
     assert type(found) is error
     assert (found.code, found.axis, found.controller_text) == (code, axis, line)
     assert found.hint in str(found)

@@ -66,7 +66,7 @@ def test_a_dip_between_the_ends_is_caught_and_another_axis_order_chosen():
     start, steps = READY, [(2, 20.0), (3, -20.0)]
     guard = MotionGuard(HIGH_TABLE)
     natural = np.array([start, (0, 20, 90, 0, 90, 0), (0, 20, 70, 0, 90, 0)], dtype=float)
-    assert guard.path_violation(natural) is not None
+    assert guard.path_violation(list(natural)) is not None  # the waypoints, row by row
     assert camera_heights(HIGH_TABLE, natural)[-1] > 50.0  # both ends are fine
     plan = guard.plan_single_joint_moves(start, steps)
     assert plan.steps == ((3, -20.0), (2, 20.0))

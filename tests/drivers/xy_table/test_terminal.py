@@ -100,7 +100,9 @@ def test_a_prompt_answered_elsewhere_is_reported_as_gone(broker: PromptBroker) -
     handle = broker.ask("turn the knob")
 
     class SlowTyper(io.StringIO):
-        def readline(self, size: int | None = -1) -> str:  # the page answers while the operator types
+        # The page answers while the operator types. [override]: typeshed's StringIO also inherits
+        # _IOBase's bytes readline, and typeshed ignores the same error on its own str readline.
+        def readline(self, size: int | None = -1) -> str:  # type: ignore[override]
             broker.confirm(handle.id, by="api")
             return "\n"
 
