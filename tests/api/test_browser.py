@@ -33,10 +33,9 @@ def browser() -> Iterator[Any]:
     try:
         from playwright.sync_api import sync_playwright
     except ImportError:
-        sync_playwright = None
-    needs_system("playwright (pip)", sync_playwright is not None, "pip install playwright")
+        needs_system("playwright (pip)", False, "pip install playwright")
+        raise
     needs_system("chromium", shutil.which(CHROMIUM) is not None, "apt-get install chromium")
-    assert sync_playwright is not None
     with sync_playwright() as p:
         b = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
         try:

@@ -11,6 +11,7 @@ import subprocess
 import sys
 import threading
 from pathlib import Path
+from typing import IO
 
 import httpx
 import pytest
@@ -59,7 +60,7 @@ class ServeProcess:
         for t in self._readers:
             t.start()
 
-    def _read(self, stream, sink: list[str], find: bool) -> None:  # type: ignore[no-untyped-def]
+    def _read(self, stream: IO[str], sink: list[str], find: bool) -> None:
         for line in stream:
             sink.append(line)
             if find and (m := URL.search(line)):

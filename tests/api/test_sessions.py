@@ -146,7 +146,7 @@ def test_figures_report_and_export_import(served: Served) -> None:
         assert bad.json()["code"] == "bad_archive"
 
 
-def test_import_into_another_station(served: Served, make_served) -> None:  # type: ignore[no-untyped-def]
+def test_import_into_another_station(served: Served) -> None:
     with served.client() as c:
         sid = c.post("/api/v1/sessions", json=SHORT).json()["id"]
         wait_final(c, sid)
@@ -189,7 +189,9 @@ def test_out_of_limit_targets_are_refused_before_anything_moves(served: Served) 
     before = list(twin.arm.actual_exact())
     far = {"S1": [[0, 30, 60, 0, 90, 0], [75, 30, 60, 0, 90, 0]]}
     with served.client() as c:
-        r = c.post("/api/v1/sessions", json={"kind": "repeatability", "params": {"joints": [], "sequences": far}})
+        r = c.post(
+            "/api/v1/sessions", json={"kind": "repeatability", "params": {"joints": [], "sequences": far}}
+        )
         assert r.status_code == 422, r.text
         body = r.json()
         assert body["code"] == "preflight_failed"
