@@ -91,24 +91,22 @@ async def session_events(
     wake = _Wakeup(request)
     try:
         yield ServerSentEvent(comment="station session events", retry=RETRY_MS)
-        batch = await run_in_threadpool(service.events_after_seq, sid, after_seq)
-        after_id = 0
+        last_seq = after_seq
         while True:
+            batch = await run_in_threadpool(service.events_after_seq, sid, last_seq)
             for e in batch:
                 yield _sse(e, e.seq)
-                after_id = e.id
+                last_seq = e.seq
             if not batch:
                 state = (await run_in_threadpool(service.record.get_session, sid)).state
                 if state in FINAL_STATES:
                     # a last look: events recorded between the read and the state
-                    tail = await run_in_threadpool(service.record.events, sid, after_id=after_id)
-                    for e in tail:
+                    for e in await run_in_threadpool(service.events_after_seq, sid, last_seq):
                         yield _sse(e, e.seq)
                     return
                 if request.app.state.stopping.is_set() or await request.is_disconnected():
                     return
                 await wake.wait(POLL_S)
-            batch = await run_in_threadpool(service.record.events, sid, after_id=after_id)
     finally:
         wake.close()
 

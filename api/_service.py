@@ -185,16 +185,7 @@ class StationService:
 
     def events_after_seq(self, session_id: str, after_seq: int, *, limit: int = 500) -> list[EventRow]:
         """A session's events with ``seq > after_seq`` (its stream resumes by sequence number)."""
-        sid = self.record.get_session(session_id).id
-        out: list[EventRow] = []
-        after_id = 0
-        while len(out) < limit:
-            batch = self.record.events(sid, after_id=after_id, limit=limit)
-            if not batch:
-                break
-            out.extend(e for e in batch if e.seq > after_seq)
-            after_id = batch[-1].id
-        return out[:limit]
+        return self.record.events(session_id, after_seq=after_seq, limit=limit)
 
     # ------------------------------------------------------------------ the station
 

@@ -28,6 +28,8 @@ from typing import Any
 import httpx
 
 FINAL = {"stopped", "aborted", "failed", "succeeded", "interrupted"}
+POLL_S = 0.5
+"""Each polling client's pause between requests (the operator page polls every 2 s)."""
 
 
 @dataclass
@@ -76,7 +78,7 @@ async def _poller(c: httpx.AsyncClient, sid: str, stats: LoadStats, stop: asynci
             stats.errors.append(f"GET {path}: {r.status_code} {r.text[:200]}")
         elif path.endswith(sid) and r.json()["state"] in FINAL:
             stop.set()
-        await asyncio.sleep(0.05)
+        await asyncio.sleep(POLL_S)
 
 
 async def _streamer(c: httpx.AsyncClient, sid: str, stats: LoadStats, stop: asyncio.Event) -> None:
@@ -95,7 +97,7 @@ async def _streamer(c: httpx.AsyncClient, sid: str, stats: LoadStats, stop: asyn
                         last = line[4:]
                         stats.events += 1
                         read += 1
-                    if stop.is_set() or read >= 20:  # hang up now and then: the client vanishes mid-stream
+                    if stop.is_set() or read >= 200:  # hang up now and then: the client vanishes mid-stream
                         break
         except httpx.HTTPError as exc:
             stats.errors.append(f"stream: {type(exc).__name__}: {exc}")
@@ -110,7 +112,11 @@ async def _load(
 ) -> LoadStats:
     stats = LoadStats()
     stop = asyncio.Event()
-    limits = httpx.Limits(max_connections=clients + 5, max_keepalive_connections=clients + 5)
+    # idle connections are dropped by the client (2 s) before uvicorn's keep-alive timeout (5 s) closes
+    # them, or a request sent on one as the server closes it fails (the keep-alive race)
+    limits = httpx.Limits(
+        max_connections=clients + 5, max_keepalive_connections=clients + 5, keepalive_expiry=2.0
+    )
     headers = {"Authorization": f"Bearer {token}"}
     async with httpx.AsyncClient(base_url=base, headers=headers, timeout=30, limits=limits) as c:
         t0 = time.perf_counter()

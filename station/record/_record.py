@@ -335,12 +335,15 @@ class Record:
         return EventRow(id=event_id, session_id=session_id, seq=seq, time=now, type=type, data=value)
 
     def events(
-        self, session_id: str | None = None, *, after_id: int = 0, limit: int = 1000
+        self, session_id: str | None = None, *, after_id: int = 0, after_seq: int = 0, limit: int = 1000
     ) -> list[EventRow]:
-        """Events with ``id > after_id`` (of one session or all), ascending id, at most ``limit``."""
+        """Events with ``id > after_id`` (of one session or all; with a session also ``seq > after_seq``,
+        how a stream resumes after its last sequence number), ascending id, at most ``limit``."""
         query = sa.select(events).where(events.c.id > after_id).order_by(events.c.id).limit(limit)
         if session_id is not None:
             query = query.where(events.c.session_id == session_id)
+            if after_seq:
+                query = query.where(events.c.seq > after_seq)
         with self._read() as conn:
             return [event_row(r) for r in conn.execute(query)]
 
