@@ -12,7 +12,8 @@ Conventions
   ``flange(q) @ tool``: with the camera's transform as ``tool`` it is the camera frame.
 * The controller's WORLD row ``(x, y, z, z_rot, y_rot, x_rot)`` is read as
   ``R = RotZ(z_rot) RotY(y_rot) RotX(x_rot)`` (yaw-pitch-roll): an assumption to check on a real
-  C500C (docs/crs-c500c-protocol.md). Only :func:`world_row` and :func:`pose_from_world_row` depend on it.
+  C500C (drivers/crs_a465/DIALECT.md, "WORLD's rotation order"). Only :func:`world_row` and
+  :func:`pose_from_world_row` depend on it.
 
 References
 ----------

@@ -1,4 +1,4 @@
-"""Kinematics of the A465: the protocol doc's reference poses, IK round trips, limits, tool, WORLD rows."""
+"""Kinematics of the A465: reference poses from the link lengths, IK round trips, limits, tool, WORLD rows."""
 
 from __future__ import annotations
 
@@ -40,7 +40,7 @@ def _random_joints(kin: Kinematics, rng: np.random.Generator, n: int, margin: fl
         ((0, 0, 90, 0, 0, 0), (406.0, 0.0, 635.0)),  # forearm horizontal: 330 + 76 forward, 330 + 305 up
     ],
 )
-def test_forward_reproduces_the_protocol_docs_reference_poses(kin, joints, flange_mm):
+def test_forward_reproduces_the_reference_poses_of_the_link_lengths(kin, joints, flange_mm):
     assert_allclose(kin.flange(joints)[:3, 3], flange_mm, rtol=0, atol=1e-9)
 
 

@@ -13,7 +13,7 @@ def gauss_kernel_7x7(sigma: float) -> npt.NDArray[np.float64]:
     """The seed's 7x7 Gaussian mask, eq. 2, ``g[i, j] = c exp(-(i^2 + j^2) / (2 sigma^2))``, normalised.
 
     The mask printed as eq. 3 is malformed (6 rows, not symmetric); its densest row (2 4 8 16 8 4 2)
-    halves per pixel, i.e. sigma = 1/sqrt(2 ln 2) = 0.85 px, the default (seed-paper.md).
+    halves per pixel, i.e. sigma = 1/sqrt(2 ln 2) = 0.85 px, the default (the seed paper: see README).
     """
     i = np.arange(-3, 4, dtype=np.float64)
     g1 = np.exp(-(i**2) / (2.0 * sigma**2))

@@ -4,7 +4,7 @@ The seed fits ``y = a x + b`` (``x = a y + b`` for the transposed vertical edges
 perpendicular distance to the line, forms the set without the farthest point, and compares the Pearson
 correlation coefficients r of both sets: "if either the coefficient or the difference are below a
 pre-determined tolerance then the smaller data set is used", until "both requirements are met" or 50
-points are removed. The sentence is ambiguous and gives no tolerances (seed-paper.md).
+points are removed. The sentence is ambiguous and gives no tolerances (the seed paper: see README).
 
 **Reading implemented here.** Keep removing the farthest point while
 

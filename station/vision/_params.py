@@ -17,7 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 Mode = Literal["paper", "precise"]
 FilterKind = Literal["none", "mean", "gauss"]
 
-#: Nominal groove width: 0.794 mm (1/32 in; the paper's label "1/16 in" is wrong, seed-paper.md).
+#: Nominal groove width: 0.794 mm (1/32 in; the paper's label "1/16 in" is wrong).
 NOMINAL_GROOVE_WIDTH_MM = 25.4 / 32
 #: The densest printed row of the seed's 7x7 mask (2 4 8 16 8 4 2) halves per pixel: sigma = 1/sqrt(2 ln 2).
 SEED_GAUSS_SIGMA_PX = 1.0 / math.sqrt(2.0 * math.log(2.0))

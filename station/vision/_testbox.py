@@ -6,7 +6,7 @@ centred on C with m = 2*TESTHEIGHT + 1 (eq. 5), and (3) columns E and F, of the 
 columns before and after C (n = 2*TESTWIDTH + 1 apart, eq. 6), each hold a non-zero value: this rejects
 pixels near the perpendicular groove and its rounded land corners (Figures 7, 9).
 
-Readings of what the seed leaves open (seed-paper.md):
+Readings of what the seed leaves open (the seed paper: see README):
 * after a hit the box moves SKIP columns right and ``backoff`` rows back up (the seed: "several"),
   then continues down; a column without a hit sends the box back to the top of the next column;
 * columns are visited every SKIP columns whether or not the previous one had a hit;
