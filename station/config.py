@@ -2,7 +2,7 @@
 
 Drivers (``drivers/``) and twins (``sim/``) register factories under the entry-point group
 ``station.devices`` with names ``KIND.NAME`` (``robot.crs_a465``, ``robot.sim``, ``camera.aravis`` ...),
-so that the core never imports them (architecture.md, direction of dependencies).
+so that the core never imports them (README, "Layout": dependencies point inward).
 """
 
 from __future__ import annotations

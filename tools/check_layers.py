@@ -1,4 +1,4 @@
-"""Check the direction of dependencies between the project's packages (docs: architecture.md).
+"""Check the direction of dependencies between the project's packages (README, "Layout").
 
 Rules, each ``(importer prefix, forbidden prefixes, allowed exceptions)``:
 
