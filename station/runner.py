@@ -29,11 +29,11 @@ from __future__ import annotations
 import contextlib
 import enum
 import logging
-import math
 import socket
 import threading
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections import deque
+from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -166,9 +166,7 @@ def reconcile(record: Record) -> list[str]:
     lock held (no live runner can own them then). Returns the ids marked."""
     marked = []
     for s in record.list_sessions():
-        if s.state in ACTIVE_STATES or (s.state == RunnerState.IDLE and s.updated_at is not None):
-            if s.state == RunnerState.IDLE:
-                continue
+        if s.state in ACTIVE_STATES:
             record.set_state(s.id, RunnerState.INTERRUPTED, error=s.error)
             record.add_event(s.id, "state", {"state": RunnerState.INTERRUPTED, "was": s.state})
             marked.append(s.id)
@@ -231,11 +229,10 @@ class SessionRunner:
         self._thread: threading.Thread | None = None
         self._done = 0
         self._total = 0
-        self._t_steps: list[float] = []
+        self._t_steps: deque[float] = deque(maxlen=20)  # the latest step durations, for the ETA
         self._session_id: str | None = resume_session.id if resume_session else None
         self._captures = 0
         self._measured_ok = 0
-        self._resting_state = RunnerState.RUNNING
         self._last_error: str | None = None
         self._store_pool: ThreadPoolExecutor | None = None
         self._store_futures: list[Future[None]] = []
@@ -257,7 +254,7 @@ class SessionRunner:
             done, total = self._done, self._total
             eta = None
             if self._t_steps and total:
-                per = sum(self._t_steps[-20:]) / len(self._t_steps[-20:])
+                per = sum(self._t_steps) / len(self._t_steps)
                 eta = round(per * (total - done), 1)
             return Progress(done, total, eta)
 
@@ -873,7 +870,6 @@ class SessionRunner:
             )
             with self._lock:
                 if self._state in (RunnerState.RUNNING, RunnerState.PAUSING):
-                    self._resting_state = self._state
                     self._set_state(RunnerState.AWAITING_OPERATOR)
         else:
             a = event.answer
@@ -922,22 +918,3 @@ def camera_height_function(devices: StationDevices | None) -> Callable[[Sequence
         return float((kin.forward(joints) @ offset)[2]) - z0
 
     return height
-
-
-def finite_or_none(v: float | None) -> float | None:
-    return None if v is None or not math.isfinite(v) else v
-
-
-def run_plan(
-    runner: SessionRunner, *, on_event: Callable[[EventRow], None] | None = None
-) -> tuple[RunnerState, SessionRow]:
-    """Run ``runner`` in this thread (listeners first); return the final state and the session row."""
-    if on_event is not None:
-        runner.subscribe(on_event)
-    state = runner.run()
-    assert runner.session_id is not None
-    return state, runner.record.get_session(runner.session_id)
-
-
-def iter_events(record: Record, session_id: str, after_id: int = 0) -> Iterable[EventRow]:
-    return record.events(session_id, after_id=after_id)
