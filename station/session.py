@@ -170,11 +170,11 @@ def run_session(
         else:
             measure, cal_doc = session_measure_params(record, kind, plan_values, cfg, assignments)
         devices: StationDevices | None = None
-        if plan.needs:
-            devices = open_sim_station(**(dict(sim) if isinstance(sim, Mapping) else {})) if sim else None
-            if devices is None:
-                assert cfg is not None
-                devices = build_station(cfg)
+        if plan.needs and sim:
+            devices = open_sim_station(**(dict(sim) if isinstance(sim, Mapping) else {}))
+        elif plan.needs:
+            assert cfg is not None  # checked above
+            devices = build_station(cfg)
         try:
             runner = SessionRunner(
                 record,
