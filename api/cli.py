@@ -12,6 +12,7 @@ import logging
 from pathlib import Path
 
 from station.commands import SubParsers
+from station.commands.run import add_record_options
 from station.config import ConfigurationError
 from station.record import RecordError
 
@@ -42,10 +43,7 @@ def register(sub: SubParsers) -> None:
     p.add_argument(
         "--port", type=int, default=DEFAULT_PORT, help=f"TCP port (default {DEFAULT_PORT}; 0: any free)"
     )
-    p.add_argument(
-        "--data", metavar="DIR", help="data directory (default: $STATION_DATA, else ./station-data)"
-    )
-    p.add_argument("--database", metavar="URL", help="SQLAlchemy URL of the record (default: SQLite in DIR)")
+    add_record_options(p)
     p.set_defaults(func=lambda args: serve(p, args))
 
 
