@@ -296,15 +296,24 @@ class SessionRunner:
             self._cond.notify_all()
 
     def abort(self, reason: str = "aborted by the operator") -> None:
-        """Stop the robot now (latched), cancel the open prompt, move nothing more: ``aborted``."""
-        with self._lock:
+        """Stop the robot now (latched), cancel the open prompt, move nothing more: ``aborted``.
+
+        The robot's stop never waits for the runner's lock: when the lock is busy (a listener of the
+        runner's events is slow), the stop is sent first and the state follows once the lock is free.
+        """
+        if self._state in FINAL_STATES or self._abort:
+            return
+        locked = self._lock.acquire(timeout=0.2)
+        try:
             if self._state in FINAL_STATES or self._abort:
                 return
             self._abort = True
             self.error = self.error or reason
-            if self._state is not RunnerState.IDLE:
-                self._set_state(RunnerState.ABORTING)
-            self._cond.notify_all()
+            if locked:
+                self._enter_aborting()
+        finally:
+            if locked:
+                self._lock.release()
         devices = self.devices
         if devices is not None and devices.robot is not None:
             try:
@@ -312,11 +321,20 @@ class SessionRunner:
             except Exception as exc:  # noqa: BLE001 - the prompt must still be cancelled
                 log.error("abort: robot stop failed: %s (use the E-stop)", exc)
                 self._event("error", {"message": f"robot stop failed during abort: {exc}; use the E-stop"})
+        if not locked:
+            with self._lock:
+                self._enter_aborting()
         if devices is not None:
             prompt = devices.broker.current()
             if prompt is not None:
                 with contextlib.suppress(PromptError):
                     devices.broker.cancel(prompt.id, reason=reason, by="runner")
+
+    def _enter_aborting(self) -> None:
+        """With the lock held: ``aborting`` unless the session has not started or has already ended."""
+        if self._state is not RunnerState.IDLE and self._state not in FINAL_STATES:
+            self._set_state(RunnerState.ABORTING)
+        self._cond.notify_all()
 
     # ------------------------------------------------------------------ running
 
@@ -864,13 +882,14 @@ class SessionRunner:
     def _on_prompt(self, event: PromptEvent) -> None:
         p = event.prompt
         if event.kind == "opened":
+            # the state first: a client that sees the prompt finds the session waiting on it
+            with self._lock:
+                if self._state in (RunnerState.RUNNING, RunnerState.PAUSING):
+                    self._set_state(RunnerState.AWAITING_OPERATOR)
             self._event(
                 "prompt_raised",
                 {"id": p.id, "kind": p.kind, "message": p.message, "fields": [f.__dict__ for f in p.fields]},
             )
-            with self._lock:
-                if self._state in (RunnerState.RUNNING, RunnerState.PAUSING):
-                    self._set_state(RunnerState.AWAITING_OPERATOR)
         else:
             a = event.answer
             self._event(
