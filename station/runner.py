@@ -234,6 +234,7 @@ class SessionRunner:
         self._captures = 0
         self._measured_ok = 0
         self._last_error: str | None = None
+        self._stop_sent = threading.Event()  # abort's robot stop has been sent (or there was none)
         self._store_pool: ThreadPoolExecutor | None = None
         self._store_futures: list[Future[None]] = []
         self.error: str | None = None
@@ -321,6 +322,7 @@ class SessionRunner:
             except Exception as exc:  # noqa: BLE001 - the prompt must still be cancelled
                 log.error("abort: robot stop failed: %s (use the E-stop)", exc)
                 self._event("error", {"message": f"robot stop failed during abort: {exc}; use the E-stop"})
+        self._stop_sent.set()
         if not locked:
             with self._lock:
                 self._enter_aborting()
@@ -576,6 +578,10 @@ class SessionRunner:
         self._event("connected", {"devices": devices.identities()})
 
     def _close(self, name: str, device: Any) -> None:
+        if name == "robot" and self._abort:
+            # the runner may reach its clean-up while abort() is still writing the stop: never close
+            # the port under it
+            self._stop_sent.wait(5.0)
         try:
             device.close()
         except Exception as exc:  # noqa: BLE001 - the others must still be closed
