@@ -29,6 +29,7 @@ import numpy.typing as npt
 from sim.arm_errors import DEFAULT_ARM_ERRORS, ArmErrorModel
 from sim.controller import ControllerTwin, TwinSettings
 from sim.world import World, WorldSpec
+from station.kinematics import Kinematics
 from station.metrology import Repeatability, repeatability
 
 FloatArray = npt.NDArray[np.float64]
@@ -55,15 +56,15 @@ def sequences_at(reference_deg: npt.ArrayLike) -> dict[str, list[list[float]]]:
 def away_signs(world: World, delta_deg: float = 10.0) -> tuple[int, ...]:
     """Per joint, the sign (+1/-1) of a ``delta_deg`` move that does not bring the camera toward the artifact.
 
-    Compares the camera's height above the artifact plane after each of the two moves; +1 on a tie
-    (within 1 um: joints 1, 4, 5 and 6 at the sim world's reference pose).
+    Decided as the station's repeatability plan decides it: the camera's height above the (level)
+    table from the nominal kinematics, +1 on a tie (within 1 um: joints 1, 4, 5 and 6 at the sim
+    world's reference pose). The true arm's small tilts must not flip a tie.
     """
     ref = np.asarray(world.spec.reference_joints_deg, dtype=float)
-    artifact = world.artifact_pose()
-    normal, origin = artifact[:3, 2], artifact[:3, 3]  # the artifact's normal points into the table
+    nominal = Kinematics(tool=world.kinematics.tool)
 
     def height(q: FloatArray) -> float:
-        return -float(normal @ (world.camera_pose_at(tuple(q))[:3, 3] - origin))
+        return float(nominal.forward(tuple(q))[2, 3])
 
     signs = []
     for j in range(JOINTS):

@@ -14,7 +14,13 @@ Frames (all mm, right-handed):
   At the reference pose and table position (0, 0), the artifact's u and v axes are the image's x and y
   turned by ``artifact_rotation_deg`` and the crossing sits on the optical axis at the working distance.
 
-A joint move changes where the camera is (through the kinematics, plus the arm's Cartesian error:
+The arm is built to a true DH table (``WorldSpec.true_dh``; by default the nominal table plus errors
+drawn by ``sim.kinematic_errors.perturbed_dh(WorldSpec.dh_error_seed)``; ``true_dh = A465_DH`` is a
+perfect arm): everything the camera sees comes from it, while the controller twin keeps reporting its
+encoders and nominal WORLD values, as a real controller does. The artifact lies flat on the table
+(its normal along the base's -z) under the true camera at the reference pose.
+
+A joint move changes where the camera is (through the true kinematics, plus the arm's Cartesian error:
 ``WorldSpec.flange_errors``, the structure and thermal part of ``sim.arm_errors``' model, which moves
 the flange after each motion of the arm without any joint reading showing it); a micrometer turn
 changes where the artifact is (through the table, with its imperfections: non-perpendicular axes,
@@ -37,8 +43,9 @@ import numpy.typing as npt
 
 from sim.arm_errors import FlangeErrors, FlangeErrorSequence
 from sim.artifact import ArtifactSpec, CameraSpec, Pose, Truth, homography_for, render
+from sim.kinematic_errors import perturbed_dh
 from sim.presets import NoisePreset, get_preset
-from station.kinematics import Kinematics, rot_z, transform
+from station.kinematics import DHRow, Kinematics, rot_z, transform
 
 FloatArray = npt.NDArray[np.float64]
 INCH_MM = 25.4
@@ -74,6 +81,9 @@ class WorldSpec:
     table: TableImperfections = field(default_factory=TableImperfections)
     defocus_px_per_mm: float = 20.0
     flange_errors: FlangeErrors = field(default_factory=FlangeErrors)
+    true_dh: tuple[DHRow, ...] | None = None
+    """The arm's true DH table; None: the nominal table plus errors drawn with ``dh_error_seed``."""
+    dh_error_seed: int = 0
 
 
 class TableAxis:
@@ -165,7 +175,13 @@ class World:
         self._last_frame_homography: FloatArray | None = None
         self.flange_errors = FlangeErrorSequence(self.spec.flange_errors, seed)
         tool = transform(np.eye(3), (0.0, 0.0, self.spec.tool_length_mm))
-        self.kinematics = Kinematics(tool=tool)
+        self.true_dh: tuple[DHRow, ...] = (
+            tuple(self.spec.true_dh)
+            if self.spec.true_dh is not None
+            else perturbed_dh(self.spec.dh_error_seed)
+        )
+        self.kinematics = Kinematics(self.true_dh, tool=tool)
+        """The arm's true kinematics (camera as the tool): truth, for tests and benchmarks."""
         res_mm = self.spec.table.resolution_in * INCH_MM
         self._x = TableAxis(res_mm, self.spec.table.backlash_mm)
         self._y = TableAxis(res_mm, self.spec.table.backlash_mm)
@@ -174,14 +190,20 @@ class World:
         # crossing is on the optical axis, in focus, turned by artifact_rotation_deg in the image.
         cam0 = self.camera_pose_at(self.spec.reference_joints_deg)
         focus = cam0[:3, :3] @ np.array([0.0, 0.0, self.spec.camera.working_distance_mm]) + cam0[:3, 3]
-        # camera z points down; artifact axes: u, v in the table plane, n = down
-        R_art = cam0[:3, :3] @ rot_z(math.radians(self.spec.artifact_rotation_deg))
+        # The table is level: its frame has z down (as the camera's at the reference pose, nearly) and x
+        # along the camera's x projected on the horizontal. Artifact axes: u, v in the table plane, n = down.
+        z_h = np.array([0.0, 0.0, -1.0])
+        x_cam = cam0[:3, 0]
+        x_h = x_cam - (x_cam @ z_h) * z_h
+        x_h /= np.linalg.norm(x_h)
+        level = np.column_stack([x_h, np.cross(z_h, x_h), z_h])
+        R_art = level @ rot_z(math.radians(self.spec.artifact_rotation_deg))
         self._artifact0 = transform(R_art, focus)
         turn = rot_z(math.radians(self.spec.table_rotation_deg))
-        x_axis = cam0[:3, :3] @ turn @ np.array([1.0, 0.0, 0.0])
+        x_axis = level @ turn @ np.array([1.0, 0.0, 0.0])
         skew = math.radians(self.spec.table.skew_deg)
         y_dir = turn @ np.array([math.sin(skew), math.cos(skew), 0.0])
-        y_axis = cam0[:3, :3] @ y_dir
+        y_axis = level @ y_dir
         self._table_axes = np.column_stack([x_axis, y_axis])  # base frame, 3x2
 
     # ------------------------------------------------------------------ arm and camera

@@ -6,8 +6,11 @@ another ``Kinematics``). Units: mm and degrees at the interface, radians inside.
 
 Conventions
 -----------
-* Link transform (modified DH): ``T(i-1, i) = RotX(alpha(i-1)) TransX(a(i-1)) RotZ(theta_i) TransZ(d_i)``
-  with ``theta_i = q_i + theta_offset_i``.
+* Link transform (modified DH): ``T(i-1, i) = RotX(alpha(i-1)) TransX(a(i-1)) RotY(beta(i-1)) RotZ(theta_i)
+  TransZ(d_i)`` with ``theta_i = q_i + theta_offset_i``. ``beta`` is Hayati's extra rotation [3], zero in
+  the nominal table: where two consecutive axes are nominally parallel (joints 2 and 3 of the A465), a
+  small tilt between them about the common normal's perpendicular cannot be written with DH's four
+  parameters without a huge jump of ``d``; ``beta`` expresses it smoothly.
 * ``flange(q)`` is the flange frame in the base frame (``base @ T01 ... T56``); ``tool_pose(q)`` is
   ``flange(q) @ tool``: with the camera's transform as ``tool`` it is the camera frame.
 * The controller's WORLD row ``(x, y, z, z_rot, y_rot, x_rot)`` is read as
@@ -20,6 +23,8 @@ References
 .. [1] J. J. Craig, *Introduction to Robotics: Mechanics and Control*, 3rd ed., ch. 3 (modified DH).
 .. [2] RoboDK robot library, CRS A465 (republished in ``SaltworkerMLU/robotkinematicscatalogue``):
        the table :data:`A465_DH` and the joint limits :data:`A465_JOINT_LIMITS_DEG`.
+.. [3] S. Hayati, M. Mirmirani, "Improving the absolute positioning accuracy of robot manipulators",
+       *J. Robotic Systems* 2(4), 1985 (the parallel-axes modification).
 """
 
 from __future__ import annotations
@@ -48,12 +53,14 @@ class UnreachableError(KinematicsError):
 
 @dataclass(frozen=True)
 class DHRow:
-    """One row of a modified DH table: ``alpha(i-1)``, ``a(i-1)``, ``d(i)``, theta offset."""
+    """One row of a modified DH table: ``alpha(i-1)``, ``a(i-1)``, ``d(i)``, theta offset, and Hayati's
+    ``beta(i-1)`` (rotation about y after ``a``; 0 in a nominal table)."""
 
     alpha_deg: float
     a_mm: float
     d_mm: float
     theta_offset_deg: float = 0.0
+    beta_deg: float = 0.0
 
 
 A465_DH: tuple[DHRow, ...] = (
@@ -206,6 +213,11 @@ class Kinematics:
         self._a = np.array([r.a_mm for r in self.dh], dtype=float)
         self._d = np.array([r.d_mm for r in self.dh], dtype=float)
         self._offset = np.radians([r.theta_offset_deg for r in self.dh])
+        self._beta = np.radians([r.beta_deg for r in self.dh])
+        # RotY(beta) as a constant 4x4 per row, None when every beta is 0 (the nominal table)
+        self._beta_rot: FloatArray | None = None
+        if np.any(self._beta != 0.0):
+            self._beta_rot = np.stack([transform(rot_y(float(b)), (0.0, 0.0, 0.0)) for b in self._beta])
 
     @staticmethod
     def _checked_transform(value: npt.ArrayLike | None, name: str) -> FloatArray:
@@ -252,6 +264,24 @@ class Kinematics:
         A[..., 2, 2] = ca
         A[..., 2, 3] = ca * self._d
         A[..., 3, 3] = 1.0
+        if self._beta_rot is not None:  # RotX(alpha) TransX(a) RotY(beta) RotZ(theta) TransZ(d)
+            Z = np.zeros_like(A)
+            Z[..., 0, 0] = ct
+            Z[..., 0, 1] = -st
+            Z[..., 1, 0] = st
+            Z[..., 1, 1] = ct
+            Z[..., 2, 2] = 1.0
+            Z[..., 2, 3] = self._d
+            Z[..., 3, 3] = 1.0
+            X = np.zeros((JOINTS, 4, 4))
+            X[:, 0, 0] = 1.0
+            X[:, 0, 3] = self._a
+            X[:, 1, 1] = ca
+            X[:, 1, 2] = -sa
+            X[:, 2, 1] = sa
+            X[:, 2, 2] = ca
+            X[:, 3, 3] = 1.0
+            A = (X @ self._beta_rot) @ Z
         frames = np.empty_like(A)
         current = np.broadcast_to(self.base, (*q.shape[:-1], 4, 4))
         for i in range(JOINTS):

@@ -17,6 +17,7 @@ from station.kinematics import (
     pose_from_world_row,
     rot_x,
     rot_y,
+    rot_z,
     transform,
     world_row,
 )
@@ -181,3 +182,36 @@ def test_jacobian_matches_finite_differences(kin):
         dq[i] = math.degrees(h)
         dp = (kin.flange(q + dq)[:3, 3] - kin.flange(q - dq)[:3, 3]) / (2 * h)
         assert_allclose(J[:3, i], dp, atol=1e-5)
+
+
+def _link_product(dh, q_deg):
+    """Reference: the link transforms multiplied one by one, Hayati's beta included."""
+    T = np.eye(4)
+    for row, q in zip(dh, q_deg, strict=True):
+        theta = math.radians(q + row.theta_offset_deg)
+        T = (
+            T
+            @ transform(rot_x(math.radians(row.alpha_deg)), (0, 0, 0))
+            @ transform(np.eye(3), (row.a_mm, 0, 0))
+            @ transform(rot_y(math.radians(row.beta_deg)), (0, 0, 0))
+            @ transform(rot_z(theta), (0, 0, 0))
+            @ transform(np.eye(3), (0, 0, row.d_mm))
+        )
+    return T
+
+
+@pytest.mark.parametrize("beta", [0.0, 0.05, -1.0])
+def test_hayati_beta_tilts_the_link_about_y(beta):
+    dh = list(A465_DH)
+    dh[2] = DHRow(dh[2].alpha_deg, dh[2].a_mm + 0.3, dh[2].d_mm, dh[2].theta_offset_deg, beta_deg=beta)
+    q = (10.0, 25.0, 70.0, -30.0, 60.0, 15.0)
+    assert_allclose(Kinematics(dh).flange(q), _link_product(dh, q), atol=1e-9)
+
+
+def test_inverse_reaches_a_pose_with_a_tilted_link():
+    dh = list(A465_DH)
+    dh[2] = DHRow(0.0, 305.2, 0.1, -90.02, beta_deg=0.05)
+    kin = Kinematics(dh)
+    q = np.array([10.0, 25.0, 70.0, -30.0, 60.0, 15.0])
+    q_back = kin.inverse(kin.flange(q), seed_deg=q, tool=False)
+    assert_allclose(q_back, q, atol=1e-7)

@@ -21,6 +21,7 @@ from sim.arm_errors import (
 from sim.controller import ControllerTwin, TwinSettings
 from sim.repeatability_truth import ProtocolSettings, away_signs, simulate_repeatability, true_centers_mm
 from sim.world import World, WorldSpec
+from station.kinematics import A465_DH
 from station.vision import measure
 
 REF = WorldSpec().reference_joints_deg
@@ -155,7 +156,10 @@ def test_the_cartesian_floor_shows_even_for_joint_6_which_turns_about_the_optica
 
 
 def test_the_flange_error_moves_the_seen_crossing_by_minus_the_camera_shift() -> None:
-    spec = WorldSpec(flange_errors=FlangeErrors(sigma_mm=0.005, drift_sigma_mm=0.002, thermal_mm=0.01))
+    spec = WorldSpec(
+        flange_errors=FlangeErrors(sigma_mm=0.005, drift_sigma_mm=0.002, thermal_mm=0.01),
+        true_dh=A465_DH,  # a perfect arm: the camera square to the artifact, as the first-order law assumes
+    )
     moves = [0]
     world = World(spec, moves=lambda: moves[0], seed=7)
     nominal = np.array(world.center_mm_at(REF))
