@@ -567,7 +567,7 @@ class SessionRunner:
         devices = self.devices
         if devices is None:
             return
-        for name in ("robot", "camera", "table"):
+        for name in ("robot", "camera", "table", "distance_sensor"):
             device = getattr(devices, name)
             if device is None:
                 continue
