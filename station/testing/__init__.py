@@ -415,7 +415,9 @@ class FakeDistanceSensor(_FakeDevice):
         d = self._distance()
         near, far = self._range
         if d is None or not near <= d <= far:
-            raise OutOfRangeError(f"fake distance sensor: no target within its measuring range {near}-{far} mm", reply=str(d))
+            raise OutOfRangeError(
+                f"fake distance sensor: no target within its measuring range {near}-{far} mm", reply=str(d)
+            )
         return float(d)
 
     def status(self) -> DistanceSensorStatus:

@@ -44,7 +44,9 @@ def test_the_driver_reads_the_worlds_distance_as_the_arm_moves() -> None:
     try:
         sim = devices.truth
         sensor, robot = devices.distance_sensor, devices.robot
-        assert sensor is not None and robot is not None and sim.distance_twin is not None
+        assert sensor is not None
+        assert robot is not None
+        assert sim.distance_twin is not None
         assert devices.distance_sensor_mount is not None
         np.testing.assert_allclose(devices.distance_sensor_mount, SIM_SENSOR_MOUNT.matrix())
         sensor.connect()
@@ -57,7 +59,8 @@ def test_the_driver_reads_the_worlds_distance_as_the_arm_moves() -> None:
         )
         robot.move_joint(3, 2.0)  # the elbow: the camera rises or drops by millimetres
         truth = sim.distance_twin.truth().distance_mm
-        assert truth is not None and abs(truth - wd) > 0.5
+        assert truth is not None
+        assert abs(truth - wd) > 0.5
         assert np.mean([sensor.read_mm() for _ in range(20)]) == pytest.approx(truth, abs=0.002)
         assert "distance_sensor" in devices.identities()
     finally:

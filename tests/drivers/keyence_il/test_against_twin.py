@@ -63,7 +63,7 @@ def test_error_reply_names_the_error_and_the_action(twin: DistanceSensorTwin, dr
     s = driver_on()
     s.connect()
     twin.inject("error", code="29")
-    with pytest.raises(ErrorReplyError, match="communication error.*baud") as info:
+    with pytest.raises(ErrorReplyError, match=r"communication error.*baud") as info:
         s.read_mm()
     assert info.value.code == "29"
     assert info.value.reply == "ER,M0,29"
