@@ -51,7 +51,9 @@ mount = {{ translation_mm = [30, 0, -2.5], rotation_deg = [0, 0, 90] }}
         assert config.snapshot()["distance_sensor"]["mount"]["rotation_deg"] == [0.0, 0.0, 90.0]
         devices = open_station(config)
         assert isinstance(devices.distance_sensor, DistanceSensor)
-        np.testing.assert_allclose(devices.distance_sensor_mount, M)
+        mount = devices.distance_sensor_mount
+        assert mount is not None
+        np.testing.assert_allclose(mount, M)
         assert devices.identities()["distance_sensor"]["port"] == twin.port
     finally:
         twin.close()
