@@ -143,6 +143,8 @@ class DistanceSensorTwin:
         self._thread: threading.Thread | None = None
         self._closing = threading.Event()
         self._wake_r, self._wake_w = os.pipe()
+        self._unplug_requested = threading.Event()
+        self._unplugged = threading.Event()
         self._buffer = bytearray()
         self.received: deque[str] = deque(maxlen=1000)
 
@@ -201,9 +203,16 @@ class DistanceSensorTwin:
         with self._lock:
             self._alarm = on
 
-    def unplug(self) -> None:
-        """Pull the cable: the pty goes away."""
-        self._close_pty()
+    def unplug(self, timeout_s: float = 5.0) -> None:
+        """Pull the cable: the pty goes away (closed by the serving thread, which alone uses its fds)."""
+        if self._thread is None or not self._thread.is_alive():
+            self._close_pty()
+            return
+        self._unplugged.clear()
+        self._unplug_requested.set()
+        self._wake()
+        if not self._unplugged.wait(timeout_s):
+            raise RuntimeError("the distance sensor twin did not unplug")
 
     # ---------------------------------------------------------------- the head
 
@@ -260,12 +269,14 @@ class DistanceSensorTwin:
 
     def _serve(self) -> None:
         while not self._closing.is_set():
+            if self._unplug_requested.is_set():
+                self._unplug_requested.clear()
+                self._close_pty()
+                self._buffer.clear()
+                self._unplugged.set()
             master = self._master
             fds = [self._wake_r] if master is None else [master, self._wake_r]
-            try:
-                readable, _, _ = select.select(fds, [], [], 0.2)
-            except (OSError, ValueError):  # the fd was closed under select (unplug)
-                continue
+            readable, _, _ = select.select(fds, [], [], 0.2)
             if self._wake_r in readable:
                 with contextlib.suppress(OSError):
                     os.read(self._wake_r, 1024)

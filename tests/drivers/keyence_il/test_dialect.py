@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from drivers.keyence_il._dialect import ErrorReplyError, encode, parse_readout, parse_reply
 from station.devices import DeviceProtocolError
@@ -52,3 +54,22 @@ def test_readouts(text: str, kind: str, value: float | None) -> None:
 def test_unreadable_values(text: str) -> None:
     with pytest.raises(DeviceProtocolError, match="unreadable"):
         parse_readout(text)
+
+
+@given(st.text(max_size=40))
+def test_any_reply_line_parses_or_is_a_protocol_error(line: str) -> None:
+    """Whatever arrives, the dialect either reads it or raises DeviceProtocolError: never another
+    exception, and never a distance from a line that is not ``M0,±**.***``."""
+    try:
+        fields = parse_reply("M0", line)
+    except DeviceProtocolError:
+        return
+    assert line.startswith("M0,")
+    for field in fields:
+        try:
+            r = parse_readout(field)
+        except DeviceProtocolError:
+            continue
+        if r.kind == "value":
+            assert r.value_mm is not None
+            assert abs(r.value_mm) < 100
