@@ -320,17 +320,29 @@ class DistanceSensorTwin:
         # "silent": the reply is lost
 
 
+#: The default mount (camera frame): 30 mm beside the optical axis, beam parallel to it.
+DEFAULT_MOUNT: FloatArray = np.array(
+    [[1.0, 0.0, 0.0, 30.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]
+)
+
+
 def start_distance_sensor_twin(
-    world: World, mount: npt.ArrayLike, *, seed: int | None = 0, **head: float | tuple[float, float]
+    world: World | None = None,
+    mount: npt.ArrayLike | None = None,
+    *,
+    seed: int | None = 0,
+    **head: float | tuple[float, float],
 ) -> DistanceSensorTwin:
-    """A started twin reading ``world`` through a head at ``camera_pose() @ mount``."""
+    """Device factory (``distance_sensor_twin.sim``): a started twin reading ``world`` (default: a
+    default world, the arm still at its reference pose, in focus) through a head at ``camera_pose() @
+    mount`` (default :data:`DEFAULT_MOUNT`)."""
     model = HeadModel.model_validate(head)
-    return DistanceSensorTwin(
-        world_source(world, np.asarray(mount, dtype=np.float64)), model, seed=seed
-    ).start()
+    m = DEFAULT_MOUNT if mount is None else np.asarray(mount, dtype=np.float64)
+    return DistanceSensorTwin(world_source(world or World(), m), model, seed=seed).start()
 
 
 __all__ = [
+    "DEFAULT_MOUNT",
     "FAULT_KINDS",
     "BeamHit",
     "DistanceSensorTwin",
