@@ -150,6 +150,19 @@ class SensorMount(BaseModel):
         T[:3, 3] = self.translation_mm
         return T
 
+    def point_mm(self, z_mm: float) -> npt.NDArray[np.float64]:
+        """The point a reading ``z_mm`` measured, in the camera frame (mm): ``mount @ (0, 0, z, 1)``."""
+        return self.matrix()[:3, :] @ np.array([0.0, 0.0, float(z_mm), 1.0])
+
+    def reading_at_plane_mm(self, distance_mm: float) -> float:
+        """What the sensor reads on a plane square to the optical axis ``distance_mm`` in front of the
+        camera (e.g. the working distance: the reading that means "in focus")."""
+        T = self.matrix()
+        beam_z = float(T[2, 2])
+        if beam_z <= 1e-9:
+            raise ValueError("the sensor's beam does not point forward along the optical axis")
+        return (float(distance_mm) - float(T[2, 3])) / beam_z
+
 
 class DistanceSensorConfig(DeviceConfig):
     """The Z distance sensor beside the camera: driver, options and its mount in the camera frame."""

@@ -83,3 +83,15 @@ def test_an_unknown_sensor_driver_is_named(tmp_path: Path) -> None:
     config = load_config(write(tmp_path, '[distance_sensor]\ndriver = "nope"'))
     with pytest.raises(ConfigurationError, match="no distance_sensor named 'nope'; available: keyence_il"):
         open_station(config)
+
+
+def test_mount_helpers_give_the_measured_point_and_the_focus_reading() -> None:
+    beside = SensorMount(translation_mm=(30.0, 0.0, 3.0))
+    assert beside.reading_at_plane_mm(68.0) == pytest.approx(65.0)
+    np.testing.assert_allclose(beside.point_mm(65.0), [30.0, 0.0, 68.0])
+    tilted = SensorMount(translation_mm=(30.0, 0.0, 0.0), rotation_deg=(0.0, -20.0, 0.0))
+    z = tilted.reading_at_plane_mm(68.0)
+    assert tilted.point_mm(z)[2] == pytest.approx(68.0)
+    assert z == pytest.approx(68.0 / np.cos(np.radians(20.0)))
+    with pytest.raises(ValueError, match="forward"):
+        SensorMount(rotation_deg=(90.0, 0.0, 0.0)).reading_at_plane_mm(68.0)
