@@ -51,9 +51,10 @@ def test_the_driver_reads_the_worlds_distance_as_the_arm_moves() -> None:
         np.testing.assert_allclose(devices.distance_sensor_mount, SIM_SENSOR_MOUNT.matrix())
         sensor.connect()
         robot.connect()
-        # at the reference pose the crossing is in focus: the sensor reads the working distance
+        # at the reference pose the crossing is in focus: the sensor reads about the working distance
+        # (30 mm beside the axis, a camera tilted a little from the level artifact reads a little off)
         wd = sim.world.spec.camera.working_distance_mm
-        assert sim.distance_twin.truth().distance_mm == pytest.approx(wd, abs=0.05)
+        assert sim.distance_twin.truth().distance_mm == pytest.approx(wd, abs=0.5)
         assert np.mean([sensor.read_mm() for _ in range(20)]) == pytest.approx(
             sim.distance_twin.truth().distance_mm, abs=0.002
         )
