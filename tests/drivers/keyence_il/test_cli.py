@@ -21,8 +21,9 @@ def test_sim_read_prints_one_json_object_per_reading(capsys: pytest.CaptureFixtu
     lines = [json.loads(line) for line in out.splitlines()]
     assert len(lines) == 3
     assert all(d["ok"] for d in lines)
-    # the default twin's world has the camera in focus: the head reads the working distance
-    assert all(d["z_mm"] == pytest.approx(68.0, abs=0.01) for d in lines)
+    # the default twin's world has the camera in focus: the head reads about the working distance (the
+    # true arm's camera may tilt a little from the level artifact, 30 mm beside the optical axis)
+    assert all(d["z_mm"] == pytest.approx(68.0, abs=0.5) for d in lines)
 
 
 def test_sim_status(capsys: pytest.CaptureFixture[str]) -> None:
