@@ -12,11 +12,26 @@ from typing import Any
 
 from sim.camera import SimCamera
 from sim.controller import ControllerTwin
+from sim.distance_sensor import DistanceSensorTwin, HeadModel, world_source
 from sim.operator import MicrometerFollower, SimOperator
 from sim.world import World, WorldSpec
-from station.config import CameraConfig, RobotConfig, StationConfig, StationDevices, TableConfig, build
-from station.devices import Robot, XYTable
+from station.config import (
+    CameraConfig,
+    DistanceSensorConfig,
+    RobotConfig,
+    SensorMount,
+    StationConfig,
+    StationDevices,
+    TableConfig,
+    build,
+)
+from station.devices import DistanceSensor, Robot, XYTable
 from station.prompts import PromptBroker
+
+#: The simulated Z sensor's mount in the camera frame: 30 mm beside the optical axis, beam parallel to
+#: it, reference point in the camera's pinhole plane, so that it reads the working distance (68 mm, inside
+#: the IL-065's 55-105 mm) when the crossing is in focus.
+SIM_SENSOR_MOUNT = SensorMount(translation_mm=(30.0, 0.0, 0.0), rotation_deg=(0.0, 0.0, 0.0))
 
 
 class SimStation:
@@ -30,6 +45,8 @@ class SimStation:
         Seeds the twin's repeatability error and the camera noise.
     twin_options
         Further :class:`sim.controller.TwinSettings` fields (``time_scale``, ``repeat_sigma_deg`` ...).
+    sensor_mount
+        Where the Z distance sensor twin sits in the camera frame; ``None``: no distance sensor.
     """
 
     def __init__(
@@ -40,6 +57,7 @@ class SimStation:
         operator_delay_s: float = 0.0,
         camera_frame_rate_hz: float = 0.0,
         table_origin_in: tuple[float, float] = (0.0, 0.0),
+        sensor_mount: SensorMount | None = SIM_SENSOR_MOUNT,
         **twin_options: Any,
     ) -> None:
         world_spec = spec or WorldSpec()
@@ -53,6 +71,11 @@ class SimStation:
             self.broker, self.world, origin_in=table_origin_in, delay_s=operator_delay_s
         ).start()
         self.follower: MicrometerFollower | None = None
+        self.sensor_mount = sensor_mount
+        self.distance_twin: DistanceSensorTwin | None = None
+        if sensor_mount is not None:
+            source = world_source(self.world, sensor_mount.matrix())
+            self.distance_twin = DistanceSensorTwin(source, HeadModel(), seed=seed).start()
 
     @property
     def port(self) -> str:
@@ -64,6 +87,8 @@ class SimStation:
             self.follower.close()
         self.operator.close()
         self.camera.close()
+        if self.distance_twin is not None:
+            self.distance_twin.close()
         self.twin.close()
 
     def __enter__(self) -> SimStation:
@@ -96,6 +121,7 @@ def build_sim_station(
     time_scale: float = 100.0,
     operator_delay_s: float = 0.0,
     operator: bool = True,
+    sensor_mount: SensorMount | None = SIM_SENSOR_MOUNT,
     **twin_options: Any,
 ) -> StationDevices:
     """Device factory (``station.sim``): the whole simulated station, built but not connected.
@@ -103,7 +129,9 @@ def build_sim_station(
     The controller twin runs on its pty and the real CRS driver talks to it; the camera renders the
     world; the manual table's prompts go to the station's broker, answered by the simulated operator
     (``operator=False``: by a person through the API, the world's micrometers then follow what they
-    confirm). ``truth`` is the :class:`SimStation` (tests and benchmarks only).
+    confirm). The Z distance sensor twin (a Keyence IL-065 behind a DL-RS1A) runs on its own pty at
+    ``sensor_mount`` in the camera frame, read by the real driver (``sensor_mount=None``: no sensor).
+    ``truth`` is the :class:`SimStation` (tests and benchmarks only).
     """
     sim = SimStation(
         spec,
@@ -111,6 +139,7 @@ def build_sim_station(
         time_scale=time_scale,
         operator_delay_s=operator_delay_s,
         table_origin_in=SIM_TABLE_ORIGIN_IN,
+        sensor_mount=sensor_mount,
         **twin_options,
     )
     try:
@@ -121,6 +150,13 @@ def build_sim_station(
             sim.follower = follower
         safety = sim_safety(sim.world)
         reference = tuple(float(a) for a in sim.world.spec.reference_joints_deg)
+        sensor_config: DistanceSensorConfig | None = None
+        sensor: DistanceSensor | None = None
+        if sim.distance_twin is not None and sensor_mount is not None:
+            sensor_config = DistanceSensorConfig(
+                driver="keyence_il", options={"port": sim.distance_twin.port}, mount=sensor_mount
+            )
+            sensor = build("distance_sensor", "keyence_il", port=sim.distance_twin.port)
         config = StationConfig(
             name="sim",
             robot=RobotConfig(
@@ -131,6 +167,7 @@ def build_sim_station(
             ),
             camera=CameraConfig(driver="sim", options={"seed": seed}),
             table=TableConfig(driver="manual", options={"origin_in": SIM_TABLE_ORIGIN_IN}, prompts="api"),
+            distance_sensor=sensor_config,
         )
         robot: Robot = build("robot", "crs_a465", port=sim.port, safety=safety)
         table: XYTable = build("table", "manual", broker=sim.broker, origin_in=SIM_TABLE_ORIGIN_IN)
@@ -143,6 +180,7 @@ def build_sim_station(
         broker=sim.broker,
         robot=robot,
         table=table,
+        distance_sensor=sensor,
         owned=[sim],
         truth=sim,
     )

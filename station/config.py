@@ -17,10 +17,12 @@ from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any, Literal
 
+import numpy as np
+import numpy.typing as npt
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from station._pydantic import problems as describe
-from station.devices import Camera, Robot, XYTable
+from station.devices import Camera, DistanceSensor, Robot, XYTable
 from station.prompts import PromptBroker
 
 log = logging.getLogger(__name__)
@@ -108,6 +110,68 @@ class TableConfig(DeviceConfig):
     prompts: Literal["terminal", "api"] = "terminal"
 
 
+class SensorMount(BaseModel):
+    """Where a distance sensor sits in the camera (tool) frame: its reference point (the origin its
+    distances are measured from) at ``translation_mm`` and its axes turned by ``rotation_deg``; its +z
+    axis is the beam.
+
+    ``rotation_deg = (rx, ry, rz)``: R = rot_z(rz) @ rot_y(ry) @ rot_x(rx) (about the camera's fixed x,
+    then y, then z axes). The default is beside the camera, beam parallel to the optical axis.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    translation_mm: tuple[float, float, float] = (30.0, 0.0, 0.0)
+    rotation_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    @field_validator("translation_mm", "rotation_deg")
+    @classmethod
+    def _finite(cls, v: tuple[float, ...]) -> tuple[float, ...]:
+        if not all(math.isfinite(a) for a in v):
+            raise ValueError(f"must be finite numbers, got {v}")
+        return v
+
+    def matrix(self) -> npt.NDArray[np.float64]:
+        """4x4 pose of the sensor in the camera frame (mm)."""
+        rx, ry, rz = (math.radians(a) for a in self.rotation_deg)
+        cx, sx, cy, sy, cz, sz = (
+            math.cos(rx),
+            math.sin(rx),
+            math.cos(ry),
+            math.sin(ry),
+            math.cos(rz),
+            math.sin(rz),
+        )
+        Rx = np.array([[1.0, 0.0, 0.0], [0.0, cx, -sx], [0.0, sx, cx]])
+        Ry = np.array([[cy, 0.0, sy], [0.0, 1.0, 0.0], [-sy, 0.0, cy]])
+        Rz = np.array([[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]])
+        T = np.eye(4)
+        T[:3, :3] = Rz @ Ry @ Rx
+        T[:3, 3] = self.translation_mm
+        return T
+
+    def point_mm(self, z_mm: float) -> npt.NDArray[np.float64]:
+        """The point a reading ``z_mm`` measured, in the camera frame (mm): ``mount @ (0, 0, z, 1)``."""
+        return self.matrix()[:3, :] @ np.array([0.0, 0.0, float(z_mm), 1.0])
+
+    def reading_at_plane_mm(self, distance_mm: float) -> float:
+        """What the sensor reads on a plane square to the optical axis ``distance_mm`` in front of the
+        camera (e.g. the working distance: the reading that means "in focus")."""
+        T = self.matrix()
+        beam_z = float(T[2, 2])
+        if beam_z <= 1e-9:
+            raise ValueError("the sensor's beam does not point forward along the optical axis")
+        return (float(distance_mm) - float(T[2, 3])) / beam_z
+
+
+class DistanceSensorConfig(DeviceConfig):
+    """The Z distance sensor beside the camera: driver, options and its mount in the camera frame."""
+
+    mount: SensorMount = Field(
+        default_factory=SensorMount, description="the sensor's pose in the camera frame"
+    )
+
+
 class ApiConfig(BaseModel):
     """The service (``station serve``): its access token and whether reads need it on loopback."""
 
@@ -138,6 +202,11 @@ class StationConfig(BaseModel):
         driver = "manual"
         options = { x_travel_in = [0, 1], y_travel_in = [0, 1], origin_in = [0.5, 0.5] }
 
+        [distance_sensor]
+        driver = "keyence_il"
+        options = { port = "/dev/ttyUSB0", head = { model = "IL-065" } }
+        mount = { translation_mm = [30, 0, 0], rotation_deg = [0, 0, 0] }
+
         [measure]
         mode = "precise"
 
@@ -152,6 +221,7 @@ class StationConfig(BaseModel):
     robot: RobotConfig | None = None
     camera: CameraConfig
     table: TableConfig | None = None
+    distance_sensor: DistanceSensorConfig | None = None
     measure: dict[str, Any] = Field(default_factory=dict, description="measurement parameters (--set)")
     scale_calibration: Path | None = Field(None, description="a scale calibration JSON file")
     api: ApiConfig = Field(default_factory=ApiConfig, description="the service's access control")
@@ -227,12 +297,19 @@ class StationDevices:
     broker: PromptBroker
     robot: Robot | None = None
     table: XYTable | None = None
+    distance_sensor: DistanceSensor | None = None
     owned: list[Any] = field(default_factory=list)
     truth: Any = None
 
     @property
     def reference_joints_deg(self) -> tuple[float, ...] | None:
         return None if self.config.robot is None else tuple(self.config.robot.reference_joints_deg)
+
+    @property
+    def distance_sensor_mount(self) -> npt.NDArray[np.float64] | None:
+        """4x4 pose of the distance sensor in the camera frame (``None`` without a sensor)."""
+        cfg = self.config.distance_sensor
+        return None if cfg is None or self.distance_sensor is None else cfg.mount.matrix()
 
     def identities(self) -> dict[str, dict[str, str | None]]:
         """Each device's identity, as recorded with a session."""
@@ -241,6 +318,8 @@ class StationDevices:
             out["robot"] = asdict(self.robot.identity())
         if self.table is not None:
             out["table"] = asdict(self.table.identity())
+        if self.distance_sensor is not None:
+            out["distance_sensor"] = asdict(self.distance_sensor.identity())
         return out
 
     def close_owned(self) -> None:
@@ -264,7 +343,12 @@ def open_station(config: StationConfig, *, broker: PromptBroker | None = None) -
     table: XYTable | None = None
     if config.table is not None:
         table = build("table", config.table.driver, broker=broker, **config.table.options)
-    return StationDevices(config=config, camera=camera, broker=broker, robot=robot, table=table)
+    sensor: DistanceSensor | None = None
+    if config.distance_sensor is not None:
+        sensor = build("distance_sensor", config.distance_sensor.driver, **config.distance_sensor.options)
+    return StationDevices(
+        config=config, camera=camera, broker=broker, robot=robot, table=table, distance_sensor=sensor
+    )
 
 
 def open_sim_station(**options: Any) -> StationDevices:

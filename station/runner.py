@@ -46,10 +46,15 @@ from station.batch import measure_file
 from station.config import StationDevices
 from station.devices import (
     DeviceError,
+    DeviceProtocolError,
+    DeviceTimeoutError,
+    DistanceSensor,
     Frame,
     MotionRejectedError,
     MotionStoppedError,
     OperatorCancelledError,
+    OutOfRangeError,
+    SensorAlarmError,
 )
 from station.plans import (
     Capture,
@@ -525,6 +530,7 @@ class SessionRunner:
                     m.result if m else None,
                     cap.width,
                     cap.height,
+                    cap.z_mm,
                 )
             )
         return out
@@ -567,7 +573,7 @@ class SessionRunner:
         devices = self.devices
         if devices is None:
             return
-        for name in ("robot", "camera", "table"):
+        for name in ("robot", "camera", "table", "distance_sensor"):
             device = getattr(devices, name)
             if device is None:
                 continue
@@ -788,6 +794,12 @@ class SessionRunner:
             with contextlib.suppress(DeviceError):
                 p = devices.table.position()
                 meta["table_mm"] = [p.x_mm, p.y_mm]
+        if devices.distance_sensor is not None:
+            # read just before the frames: a lost link fails the step before anything is grabbed
+            z_mm, z_error = self._read_z(devices.distance_sensor)
+            meta["z_mm"] = z_mm
+            if z_error is not None:
+                meta["z_error"] = z_error
         # frame indices of a step's n-th attempt start at n x FRAMES_PER_ATTEMPT (a resumed step never
         # overwrites or deletes what an interrupted attempt captured)
         earlier = self.record.captures(sid, step_index=step.index)
@@ -797,6 +809,22 @@ class SessionRunner:
             else 0
         )
         return devices.camera.grab_many(action.frames), meta, first
+
+    def _read_z(self, sensor: DistanceSensor) -> tuple[float | None, str | None]:
+        """The distance sensor's reading for a capture: (mm, None), or (None, why) when it has no valid
+        distance (out of range, alarm: the capture goes on, its z is missing). A garbled or lost reply
+        is read once more; a second failure, or a lost link, fails the step."""
+        for attempt in (1, 2):
+            try:
+                return sensor.read_mm(), None
+            except (OutOfRangeError, SensorAlarmError) as exc:
+                self._event("warning", {"message": f"no z with this capture: {exc}"})
+                return None, str(exc)
+            except (DeviceProtocolError, DeviceTimeoutError) as exc:
+                if attempt == 2:
+                    raise
+                self._event("warning", {"message": f"distance sensor: {exc}; reading again"})
+        raise AssertionError("unreachable")
 
     def _store(
         self, sid: str, step: Step, frames: list[Frame], meta: dict[str, Any], first: int
@@ -813,6 +841,7 @@ class SessionRunner:
                 frame.image,
                 timestamp_s=frame.timestamp_s,
                 meta={**meta, "frame_id": frame.frame_id},
+                z_mm=meta.get("z_mm"),
             )
             self._captures += 1
             self._event(
@@ -834,6 +863,7 @@ class SessionRunner:
                     "ok": ok,
                     "center_px": result.get("center_px"),
                     "center_mm": result.get("center_mm"),
+                    "z_mm": meta.get("z_mm"),
                     "error": result.get("error"),
                     "code": result.get("code"),
                 },

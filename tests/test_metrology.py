@@ -30,6 +30,31 @@ def test_repeatability_hand_worked_uneven() -> None:
     assert_allclose([r.l_bar, r.s_l, r.rp], [l_bar, s_l, l_bar + 3 * s_l])
 
 
+def test_repeatability_hand_worked_in_3d() -> None:
+    # the cube's eight corners (+/-1, +/-1, +/-1) and its centre: barycentre 0, eight distances sqrt(3)
+    # and one 0; l_bar = 8 sqrt(3) / 9, S_l over N - 1 = 8
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+    r = repeatability(np.vstack([corners, [[0.0, 0.0, 0.0]]]))
+    d = math.sqrt(3.0)
+    assert r.barycentre == (0.0, 0.0, 0.0)
+    assert_allclose(r.distances, [d] * 8 + [0.0])
+    l_bar = 8 * d / 9
+    s_l = math.sqrt((8 * (d - l_bar) ** 2 + l_bar**2) / 8)
+    assert_allclose([r.l_bar, r.s_l, r.rp], [l_bar, s_l, l_bar + 3 * s_l])
+
+
+def test_repeatability_in_3d_with_z_constant_is_the_2d_figure() -> None:
+    p2 = np.array([[0, 0], [3, 0], [0, 3], [3, 3], [1.5, 1.5]], dtype=float)
+    p3 = np.column_stack([p2, np.full(5, 68.0)])
+    assert repeatability(p3).rp == pytest.approx(repeatability(p2).rp)
+
+
+@pytest.mark.parametrize("shape", [(5, 1), (5, 4), (5,), (1, 3)])
+def test_repeatability_refuses_other_shapes(shape: tuple[int, ...]) -> None:
+    with pytest.raises(ValueError, match=r"\(N, 2\) or \(N, 3\)"):
+        repeatability(np.zeros(shape))
+
+
 def test_repeatability_needs_two_points() -> None:
     with pytest.raises(ValueError, match="N >= 2"):
         repeatability(np.array([[1.0, 2.0]]))

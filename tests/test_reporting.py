@@ -367,3 +367,26 @@ def test_sweep_prefers_the_parallelogram_errors_of_table_1() -> None:
     assert "after the well-fit parallelogram" in table
     first = s["results"]["trials"][0]
     assert f"{first['parallelogram_max_um'] / 1000:.5f}  {first['parallelogram_mean_um'] / 1000:.5f}" in table
+
+
+def test_repeatability_with_z_adds_the_3d_columns() -> None:
+    s = session("repeatability", "s-z")
+    tests = s["results"]["tests"]
+    first, second = list(tests)[:2]
+    tests[first].update(
+        {"rp3d_mm": 0.031234, "l_bar3d_mm": 0.02, "s_l3d_mm": 0.004, "rp3d_ci95_mm": [0.025, 0.04]}
+    )
+    tests[second]["rp3d_error"] = "no z on 1 of 30 cycle captures: out of range"
+    text = text_tables(s)["repeatability"]
+    header = next(line for line in text.splitlines() if line.startswith("test "))
+    assert header.split()[-2:] == ["RP3D_mm", "RP3D_95%_mm"]
+    row = next(line for line in text.splitlines() if line.startswith(first + " "))
+    assert "0.03123" in row
+    assert "0.02500 - 0.04000" in row
+    assert "no RP3D: no z on 1 of 30" in next(
+        line for line in text.splitlines() if line.startswith(second + " ")
+    )
+    assert "z from the distance sensor" in text
+    # without z the table is as before
+    plain = text_tables(session("repeatability", "s-plain"))["repeatability"]
+    assert "RP3D" not in plain

@@ -92,7 +92,11 @@ class Step:
 
 @dataclass(frozen=True)
 class CaptureResult:
-    """What analysis gets per capture: its metadata and its measurement (``None`` when it failed)."""
+    """What analysis gets per capture: its metadata and its measurement (``None`` when it failed).
+
+    ``z_mm``: the distance sensor's reading with the frame (mm), ``None`` without a sensor or a valid
+    reading (``meta["z_error"]`` then says why).
+    """
 
     capture_id: int
     step_index: int
@@ -101,6 +105,7 @@ class CaptureResult:
     measurement: Mapping[str, Any] | None
     width: int = 0
     height: int = 0
+    z_mm: float | None = None
 
 
 @dataclass

@@ -5,7 +5,9 @@ captures again, after ``warmup_cycles`` uncaptured cycles (ISO 9283 asks for a w
 moves joint ``j`` by ``delta_deg`` and back; a sequence test visits its list of joint targets and
 returns. RP = l-bar + 3 S_l of the positions at the return captures, with a bootstrap 95 % interval for that
 number of cycles. The position is the tool point's: where the camera's optical axis meets the artifact,
-in the artifact's axes (mm), from one homography fitted over the test's captures.
+in the artifact's axes (mm), from one homography fitted over the test's captures. With a distance
+sensor, each capture also has z (mm along the sensor's beam) and each test reports RP in 3-D (x, y, z)
+as well (``rp3d_mm`` and the other ``*3d*`` keys); the 2-D figures stay as they are.
 
 The sign of each joint's excursion defaults to the one that does not bring the camera toward the
 artifact (from the kinematics and the configured camera and artifact plane); pre-flight then checks
@@ -19,12 +21,15 @@ from collections.abc import Iterator, Sequence
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from station.devices import JOINT_COUNT
 from station.metrology import repeatability, rp_interval
 from station.plans import Capture, CaptureResult, MoveJoints, PlanContext, PlanError, SetSpeed, Settle, Step
 from station.plans._analysis import failures, group_mean, measured, principal_point, series_positions_mm
+
+FloatArray = npt.NDArray[np.float64]
 
 #: The seed's Table 2: RP (mm) per joint, delta 10 deg, about 80 % speed and 50 % rated load, 30 cycles.
 SEED_TABLE2_MM = {"J1": 0.01664, "J2": 0.01813, "J3": 0.02321, "J4": 0.01671, "J5": 0.05299, "J6": 0.01601}
@@ -207,6 +212,7 @@ class RepeatabilityPlan:
                 "n_cycles": len(points),
                 "failures": failures([c for c in captures if c.meta.get("test") == test]),
             }
+            entry.update(_rp3d(cycles, pos[np.array(is_cycle)]))
             if test in params.sequences:
                 entry["targets_deg"] = [list(t) for t in params.sequences[test]]
             else:
@@ -217,7 +223,7 @@ class RepeatabilityPlan:
                 entry["delta_deg"] = away[joint - 1] - ref[joint - 1]  # signed: the direction used
                 entry["away_deg"] = away
             tests[test] = entry
-        return {
+        out: dict[str, Any] = {
             "rp_mm": {t: e["rp_mm"] for t, e in tests.items() if "rp_mm" in e},
             "n_cycles": params.cycles,
             "tests": tests,
@@ -225,6 +231,35 @@ class RepeatabilityPlan:
             "load_kg": params.load_kg,
             "seed_table2_mm": SEED_TABLE2_MM,
         }
+        rp3d = {t: e["rp3d_mm"] for t, e in tests.items() if "rp3d_mm" in e}
+        if rp3d:
+            out["rp3d_mm"] = rp3d
+        return out
+
+
+def _rp3d(cycles: Sequence[CaptureResult], xy_mm: FloatArray) -> dict[str, Any]:
+    """ISO 9283 RP in 3-D from the cycle captures' (x, y) and the distance sensor's z (mm), when every
+    cycle capture has a z; nothing when none has (a station without a sensor); an explanation when only
+    some have."""
+    z = [c.z_mm for c in cycles]
+    if all(v is None for v in z):
+        return {}
+    missing = [c.capture_id for c in cycles if c.z_mm is None]
+    if missing:
+        why = sorted({str(c.meta.get("z_error", "no reading")) for c in cycles if c.z_mm is None})
+        return {"rp3d_error": f"no z on {len(missing)} of {len(cycles)} cycle captures: {'; '.join(why)}"}
+    xyz = np.column_stack([xy_mm, np.array(z, dtype=np.float64)])
+    _, points = group_mean([c.meta["cycle"] for c in cycles], xyz)
+    rep = repeatability(points)
+    lo, hi = rp_interval(points)
+    return {
+        "points3d_mm": points.tolist(),
+        "barycentre3d_mm": list(rep.barycentre),
+        "l_bar3d_mm": rep.l_bar,
+        "s_l3d_mm": rep.s_l,
+        "rp3d_mm": rep.rp,
+        "rp3d_ci95_mm": [lo, hi],
+    }
 
 
 REPEATABILITY = RepeatabilityPlan()

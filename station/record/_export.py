@@ -162,6 +162,7 @@ def _capture_dict(r: sa.Row[Any]) -> dict[str, Any]:
         "sha256": r.sha256,
         "timestamp_s": r.timestamp_s,
         "meta": r.meta,
+        "z_mm": r.z_mm,
     }
 
 
@@ -178,7 +179,8 @@ def _measurement_dict(r: sa.Row[Any]) -> dict[str, Any]:
 
 
 CAPTURE_COLUMNS = [
-    "id", "step_index", "frame_index", "path", "width", "height", "dtype", "sha256", "timestamp_s", "meta"
+    "id", "step_index", "frame_index", "path", "width", "height", "dtype", "sha256", "timestamp_s", "meta",
+    "z_mm",
 ]  # fmt: skip
 MEASUREMENT_COLUMNS = [
     "id", "capture_id", "capture_session_id", "step_index", "frame_index", "ok", "center_px_x",

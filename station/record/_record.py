@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import math
 import re
 import uuid
 from collections.abc import Callable, Iterator, Mapping
@@ -90,6 +91,7 @@ def capture_row(r: sa.Row[Any]) -> CaptureRow:
         sha256=r.sha256,
         timestamp_s=r.timestamp_s,
         meta=r.meta,
+        z_mm=r.z_mm,
     )
 
 
@@ -428,8 +430,11 @@ class Record:
         *,
         timestamp_s: float,
         meta: Mapping[str, Any],
+        z_mm: float | None = None,
     ) -> CaptureRow:
         """Store a frame as a lossless PNG (atomically, durably), then its row.
+
+        ``z_mm``: the distance sensor's reading with the frame (mm), if any.
 
         Raises
         ------
@@ -439,6 +444,8 @@ class Record:
         image = _images.check_image(image)
         if step_index < 0 or frame_index < 0:
             raise ValueError(f"step and frame indices must be >= 0, not {step_index}, {frame_index}")
+        if z_mm is not None and not math.isfinite(z_mm):
+            raise ValueError(f"z_mm must be a finite distance in mm or None, not {z_mm!r}")
         meta_value = json_object(meta, "meta")
         rel = capture_path(session_id, step_index, frame_index)
         with self._read() as conn:
@@ -471,6 +478,7 @@ class Record:
             "sha256": sha,
             "timestamp_s": float(timestamp_s),
             "meta": meta_value,
+            "z_mm": None if z_mm is None else float(z_mm),
         }
         try:
             with self._write() as conn:

@@ -55,7 +55,10 @@ class StepRow:
 
 @dataclass(frozen=True)
 class CaptureRow:
-    """One stored frame; ``path`` is relative to the data directory, ``sha256`` of the file bytes."""
+    """One stored frame; ``path`` is relative to the data directory, ``sha256`` of the file bytes.
+
+    ``z_mm``: the distance sensor's reading taken with the frame (mm), ``None`` without a sensor or
+    without a valid reading (the capture's ``meta["z_error"]`` then says why)."""
 
     id: int
     session_id: str
@@ -68,6 +71,7 @@ class CaptureRow:
     sha256: str
     timestamp_s: float
     meta: dict[str, Any]
+    z_mm: float | None = None
 
 
 @dataclass(frozen=True)

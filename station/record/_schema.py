@@ -113,6 +113,8 @@ captures = sa.Table(
     sa.Column("timestamp_s", sa.Double(), nullable=False),
     sa.Column("meta", sa.JSON(), nullable=False),
     sa.UniqueConstraint("session_id", "step_index", "frame_index"),
+    # the distance sensor's reading with the frame, mm (migration 0002); NULL without one
+    sa.Column("z_mm", sa.Double(), nullable=True),
 )
 
 measurements = sa.Table(

@@ -93,6 +93,12 @@ class RepeatabilityTest(_Model):
     rp_ci95_mm: Point | None = None
     n_cycles: int
     failures: list[dict[str, Any]] = Field(default_factory=list)
+    # with a distance sensor: the same statistics in 3-D (x, y and the sensor's z)
+    l_bar3d_mm: float | None = None
+    s_l3d_mm: float | None = None
+    rp3d_mm: float | None = None
+    rp3d_ci95_mm: Point | None = None
+    rp3d_error: str | None = None
 
 
 class FailedTest(_Model):

@@ -199,12 +199,24 @@ def motion(name: str, t: RepeatabilityTest) -> str:
     return t.kind
 
 
+def _rp3d_cells(t: RepeatabilityTest | FailedTest | None) -> list[str]:
+    if not isinstance(t, RepeatabilityTest):
+        return ["", ""]
+    if t.rp3d_mm is None:
+        return [f"no RP3D: {t.rp3d_error}" if t.rp3d_error else "", ""]
+    ci = "" if t.rp3d_ci95_mm is None else f"{t.rp3d_ci95_mm[0]:.5f} - {t.rp3d_ci95_mm[1]:.5f}"
+    return [f"{t.rp3d_mm:.5f}", ci]
+
+
 def repeatability_tables(r: RepeatabilityResults) -> dict[str, Table]:
     """The seed's Table 2 with each test's statistics (eq. 13) and, when given, the seed's RP."""
     seed = r.seed_table2_mm or {}
     headers = ["test", "motion", "l_bar_mm", "S_l_mm", "RP_mm", "RP_95%_mm", "N"]
     if seed:
         headers.append("seed_RP_mm")
+    with_z = any(t.rp3d_mm is not None or t.rp3d_error is not None for t in r.measured.values())
+    if with_z:
+        headers += ["RP3D_mm", "RP3D_95%_mm"]
     rows = []
     names = list(r.tests) + [n for n in r.rp_mm if n not in r.tests]
     failed: list[tuple[str, dict[str, Any]]] = []
@@ -221,11 +233,18 @@ def repeatability_tables(r: RepeatabilityResults) -> dict[str, Table]:
             row += [ci, str(t.n_cycles)]
         if seed:
             row.append(f"{seed[name]:.5f}" if name in seed else "")
+        if with_z:
+            row += _rp3d_cells(t)
         rows.append(row)
     notes = [
         "RP = l_bar + 3 S_l (seed eq. 13, ISO 9283); S_l with N - 1; l = distance of each attained "
         "position from the barycentre; 95 % interval of RP by bootstrap over the N cycles",
     ]
+    if with_z:
+        notes.append(
+            "RP3D: the same in 3-D, each attained position's (x, y) from the image and z from the distance"
+            " sensor"
+        )
     conditions = [f"{r.n_cycles} cycles per test"] if r.n_cycles is not None else []
     if r.speed_pct is not None:
         conditions.append(f"{r.speed_pct:g} % speed")

@@ -21,18 +21,28 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from station.config import CameraConfig, RobotConfig, StationConfig, StationDevices, TableConfig
+from station.config import (
+    CameraConfig,
+    DistanceSensorConfig,
+    RobotConfig,
+    StationConfig,
+    StationDevices,
+    TableConfig,
+)
 from station.devices import (
     JOINT_COUNT,
     CameraStatus,
     DeviceConnectionError,
     DeviceIdentity,
+    DistanceSensorStatus,
     Frame,
     ImageArray,
     MotionRejectedError,
     MotionStoppedError,
+    OutOfRangeError,
     RobotPosition,
     RobotStatus,
+    SensorAlarmError,
     TablePosition,
     grab_frames,
 )
@@ -369,6 +379,57 @@ class FakeCamera(_FakeDevice):
         )
 
 
+# --------------------------------------------------------------------------- distance sensor
+
+
+class FakeDistanceSensor(_FakeDevice):
+    """A distance sensor that reads ``distance()`` (mm; ``None``: no target) at once.
+
+    Outside ``measuring_range_mm`` or ``None``: ``OutOfRangeError``; ``alarm = True``:
+    ``SensorAlarmError``; any other failure through ``fail_on("read_mm", exc)``.
+    """
+
+    MODEL = "fake distance sensor"
+
+    def __init__(
+        self,
+        distance: Callable[[], float | None] | float | None = 68.0,
+        *,
+        measuring_range_mm: tuple[float, float] = (55.0, 105.0),
+    ) -> None:
+        super().__init__()
+        self._distance = distance if callable(distance) else (lambda: distance)
+        self._range = measuring_range_mm
+        self.alarm = False
+
+    @property
+    def measuring_range_mm(self) -> tuple[float, float]:
+        return self._range
+
+    def read_mm(self) -> float:
+        self._call("read_mm")
+        if not self.connected:
+            raise DeviceConnectionError("fake distance sensor: connect() first")
+        if self.alarm:
+            raise SensorAlarmError("fake distance sensor: alarm", reply="alarm")
+        d = self._distance()
+        near, far = self._range
+        if d is None or not near <= d <= far:
+            raise OutOfRangeError(
+                f"fake distance sensor: no target within its measuring range {near}-{far} mm", reply=str(d)
+            )
+        return float(d)
+
+    def status(self) -> DistanceSensorStatus:
+        try:
+            d = self.read_mm()
+        except OutOfRangeError as exc:
+            return DistanceSensorStatus("out_of_range", str(exc))
+        except SensorAlarmError as exc:
+            return DistanceSensorStatus("alarm", str(exc))
+        return DistanceSensorStatus("ok", f"{d:.3f} mm")
+
+
 @dataclass
 class FakeStation:
     """A fake robot, camera and table wired through one ``Scene``, as ``StationDevices``."""
@@ -377,6 +438,7 @@ class FakeStation:
     table: FakeTable = field(default_factory=FakeTable)
     camera: FakeCamera | None = None
     broker: PromptBroker = field(default_factory=PromptBroker)
+    distance_sensor: FakeDistanceSensor | None = None
 
     def __post_init__(self) -> None:
         if self.camera is None:
@@ -397,10 +459,16 @@ class FakeStation:
             robot=RobotConfig(driver="fake", reference_joints_deg=tuple(self.robot.joints)),
             camera=CameraConfig(driver="fake"),
             table=TableConfig(driver="fake", prompts="api"),
+            distance_sensor=None if self.distance_sensor is None else DistanceSensorConfig(driver="fake"),
         )
         return StationDevices(
-            config=config, camera=self.camera, broker=self.broker, robot=self.robot, table=self.table
+            config=config,
+            camera=self.camera,
+            broker=self.broker,
+            robot=self.robot,
+            table=self.table,
+            distance_sensor=self.distance_sensor,
         )
 
 
-__all__ = ["FakeCamera", "FakeRobot", "FakeStation", "FakeTable", "Scene", "draw_cross"]
+__all__ = ["FakeCamera", "FakeDistanceSensor", "FakeRobot", "FakeStation", "FakeTable", "Scene", "draw_cross"]

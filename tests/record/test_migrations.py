@@ -55,7 +55,10 @@ def test_migrations_ship_inside_the_package() -> None:
     assert station.__file__ is not None  # a regular package, not a namespace one
     assert MIGRATIONS.is_relative_to(Path(station.__file__).parent)
     assert (MIGRATIONS / "env.py").is_file()
-    assert sorted(p.name for p in (MIGRATIONS / "versions").glob("0*.py")) == ["0001_initial.py"]
+    assert sorted(p.name for p in (MIGRATIONS / "versions").glob("0*.py")) == [
+        "0001_initial.py",
+        "0002_capture_z.py",
+    ]
     pyproject = (Path(__file__).parents[2] / "pyproject.toml").read_text()
     assert (
         '"station.record" = ["migrations/*.py", "migrations/*.mako", "migrations/versions/*.py"]' in pyproject
