@@ -10,12 +10,15 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from sim.camera import SimCamera
 from sim.controller import ControllerTwin
 from sim.distance_sensor import DistanceSensorTwin, HeadModel, world_source
 from sim.operator import MicrometerFollower, SimOperator
 from sim.world import World, WorldSpec
 from station.config import (
+    CalibrationConfig,
     CameraConfig,
     DistanceSensorConfig,
     RobotConfig,
@@ -26,6 +29,7 @@ from station.config import (
     build,
 )
 from station.devices import DistanceSensor, Robot, XYTable
+from station.kinematics import Kinematics, transform
 from station.prompts import PromptBroker
 
 #: The simulated Z sensor's mount in the camera frame: 30 mm beside the optical axis, beam parallel to
@@ -114,6 +118,23 @@ def sim_safety(world: World) -> dict[str, Any]:
     }
 
 
+def taught_artifacts_mm(world: World) -> list[tuple[float, float, float]]:
+    """Each artifact's crossing as a person would teach it: the arm jogged until the true camera sees the
+    crossing centred at the working distance, the position then read through the nominal kinematics
+    (what WORLD reports) plus the working distance along the optical axis. Off the truth by the arm's
+    kinematic errors (a millimetre or so), which is what the calibration plan's re-centring absorbs."""
+    wd = world.spec.camera.working_distance_mm
+    nominal = Kinematics(tool=world.kinematics.tool)
+    look_down = np.diag([-1.0, 1.0, -1.0])
+    out = []
+    for T in world.artifact_poses():
+        camera = transform(look_down, T[:3, 3] + np.array([0.0, 0.0, wd]))
+        q = world.kinematics.inverse(camera, seed_deg=world.spec.reference_joints_deg)
+        taught = nominal.forward(q) @ np.array([0.0, 0.0, wd, 1.0])
+        out.append((round(float(taught[0]), 1), round(float(taught[1]), 1), round(float(taught[2]), 1)))
+    return out
+
+
 def build_sim_station(
     *,
     spec: WorldSpec | None = None,
@@ -168,6 +189,11 @@ def build_sim_station(
             camera=CameraConfig(driver="sim", options={"seed": seed}),
             table=TableConfig(driver="manual", options={"origin_in": SIM_TABLE_ORIGIN_IN}, prompts="api"),
             distance_sensor=sensor_config,
+            calibration=CalibrationConfig(
+                artifacts_mm=taught_artifacts_mm(sim.world),
+                working_distance_mm=sim.world.spec.camera.working_distance_mm,
+                pixel_mm=1.0 / sim.world.spec.camera.px_per_mm,
+            ),
         )
         robot: Robot = build("robot", "crs_a465", port=sim.port, safety=safety)
         table: XYTable = build("table", "manual", broker=sim.broker, origin_in=SIM_TABLE_ORIGIN_IN)

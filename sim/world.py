@@ -81,6 +81,17 @@ class WorldSpec:
     table: TableImperfections = field(default_factory=TableImperfections)
     defocus_px_per_mm: float = 20.0
     flange_errors: FlangeErrors = field(default_factory=FlangeErrors)
+    bench_artifacts: tuple[tuple[float, float, float, float], ...] = (
+        (350.0, 250.0, 380.0, 30.0),
+        (520.0, -200.0, 335.0, -20.0),
+        (0.0, -400.0, 400.0, 60.0),
+        (-100.0, 380.0, 420.0, -45.0),
+    )
+    """Further artifacts fixed on the bench (not on the table), for calibration: each ``(x, y, z, yaw_deg)``
+    in the base frame (crossing position, mm; turn of its u axis about base z from the base's x, deg),
+    level like the table's, on blocks above the table's plane (the arm's keep-out). The camera sees the
+    artifact nearest its optical axis. The defaults spread four around the arm, reachable with the
+    camera looking down by two to four joint solutions each."""
     true_dh: tuple[DHRow, ...] | None = None
     """The arm's true DH table; None: the nominal table plus errors drawn with ``dh_error_seed``."""
     dh_error_seed: int = 0
@@ -205,6 +216,11 @@ class World:
         y_dir = turn @ np.array([math.sin(skew), math.cos(skew), 0.0])
         y_axis = level @ y_dir
         self._table_axes = np.column_stack([x_axis, y_axis])  # base frame, 3x2
+        flat = np.diag([1.0, -1.0, -1.0])  # u along base x, normal down (u x v = n)
+        self._bench = [
+            transform(rot_z(math.radians(yaw)) @ flat, (x, y, z))
+            for x, y, z, yaw in self.spec.bench_artifacts
+        ]
 
     # ------------------------------------------------------------------ arm and camera
 
@@ -254,16 +270,44 @@ class World:
         with self._lock:
             return self._x.position_mm, self._y.position_mm
 
-    def artifact_pose(self) -> FloatArray:
-        """4x4 artifact frame in the base frame: truth, for tests."""
+    def table_artifact_pose(self) -> FloatArray:
+        """4x4 frame of the artifact on the table, in the base frame: truth, for tests."""
         tx, ty = self.table_position_mm()
         T = self._artifact0.copy()
         T[:3, 3] += self._table_axes @ np.array([tx, ty])
         return T
 
+    def artifact_poses(self) -> list[FloatArray]:
+        """Every artifact's 4x4 frame in the base frame: the table's first, then the bench's (truth)."""
+        return [self.table_artifact_pose(), *(T.copy() for T in self._bench)]
+
+    def seen_artifact(self, camera_pose: FloatArray) -> int:
+        """Index (in :meth:`artifact_poses`) of the artifact nearest the optical axis of a camera pose."""
+        poses = self.artifact_poses()
+        if len(poses) == 1:
+            return 0
+        best, best_d = 0, math.inf
+        for i, T in enumerate(poses):
+            p = np.linalg.solve(camera_pose, np.append(T[:3, 3], 1.0))[:3]
+            if p[2] <= 0:  # behind the camera
+                continue
+            d = math.hypot(p[0], p[1])
+            if d < best_d:
+                best, best_d = i, d
+        return best
+
+    def artifact_pose(self, index: int | None = None) -> FloatArray:
+        """4x4 artifact frame in the base frame (truth, for tests): the one the camera sees now (the
+        table's unless bench artifacts are configured), or ``artifact_poses()[index]``."""
+        poses = self.artifact_poses()
+        if index is None:
+            index = self.seen_artifact(self.camera_pose()) if len(poses) > 1 else 0
+        return poses[index]
+
     def artifact_in_camera(self) -> FloatArray:
-        """4x4 artifact frame in the camera frame."""
-        return np.linalg.inv(self.camera_pose()) @ self.artifact_pose()
+        """4x4 frame, in the camera frame, of the artifact the camera sees."""
+        cam = self.camera_pose()
+        return np.linalg.inv(cam) @ self.artifact_poses()[self.seen_artifact(cam)]
 
     def pose(self, artifact_in_camera: FloatArray | None = None) -> Pose:
         """The artifact's pose as the renderer takes it (now, or for the given 4x4 artifact-in-camera)."""
@@ -298,7 +342,8 @@ class World:
         move it). With the table where it is now and, when ``move`` is given, the flange's Cartesian error
         after that many motions (``moves()`` at the capture).
         """
-        T = np.linalg.inv(self.camera_pose_at(joints_deg, move=move)) @ self.artifact_pose()
+        cam = self.camera_pose_at(joints_deg, move=move)
+        T = np.linalg.inv(cam) @ self.artifact_poses()[self.seen_artifact(cam)]
         return center_mm_of(homography_for(self.pose(T), self.spec.camera), self._relative_px(tool_point))
 
     def center_mm(self, *, tool_point: bool = False) -> tuple[float, float]:

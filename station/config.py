@@ -181,6 +181,33 @@ class ApiConfig(BaseModel):
     open_reads: bool = Field(True, description="GET endpoints without a token while bound to loopback")
 
 
+class CalibrationConfig(BaseModel):
+    """What the calibration plan must know of the cell (``[calibration]``)::
+
+        [calibration]
+        artifacts_mm = [[482, 0, 329], [350, 250, 380]]   # taught crossing positions, base frame
+        working_distance_mm = 68
+        pixel_mm = 0.01                                     # object-side pixel at the working distance
+
+    ``artifacts_mm``: where each artifact's crossing is (base frame, mm) as taught with the nominal
+    kinematics (jog until the crossing is centred and in focus, read WORLD, add the working distance
+    along the optical axis); within about 2 mm is enough: the plan re-centres by measurement.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    artifacts_mm: list[tuple[float, float, float]] = Field(min_length=1)
+    working_distance_mm: float = Field(gt=0, le=1000)
+    pixel_mm: float = Field(gt=0, le=1.0, description="object-side pixel size at the working distance")
+
+    @field_validator("artifacts_mm")
+    @classmethod
+    def _finite_positions(cls, v: list[tuple[float, float, float]]) -> list[tuple[float, float, float]]:
+        if not all(math.isfinite(c) for p in v for c in p):
+            raise ValueError(f"artifacts_mm must be finite positions, got {v}")
+        return v
+
+
 class StationConfig(BaseModel):
     """A station configuration file (TOML), e.g.::
 
@@ -225,6 +252,7 @@ class StationConfig(BaseModel):
     measure: dict[str, Any] = Field(default_factory=dict, description="measurement parameters (--set)")
     scale_calibration: Path | None = Field(None, description="a scale calibration JSON file")
     api: ApiConfig = Field(default_factory=ApiConfig, description="the service's access control")
+    calibration: CalibrationConfig | None = Field(None, description="the kinematic calibration's cell")
 
     def snapshot(self) -> dict[str, Any]:
         """JSON-ready copy for the record, with anything that looks like a secret redacted."""

@@ -57,10 +57,14 @@ from station.devices import (
     SensorAlarmError,
 )
 from station.plans import (
+    Align,
+    AlignInput,
+    AlignSkippedError,
     Capture,
     CaptureResult,
     Compute,
     MoveJoints,
+    MoveOffset,
     MoveTable,
     Plan,
     PlanContext,
@@ -71,7 +75,7 @@ from station.plans import (
 )
 from station.prompts import PromptError, PromptEvent
 from station.record import EventRow, Record, RecordError, SessionRow, station_lock
-from station.vision import MeasureParams
+from station.vision import MeasurementError, MeasureParams, measure
 
 log = logging.getLogger(__name__)
 
@@ -242,6 +246,9 @@ class SessionRunner:
         self._stop_sent = threading.Event()  # abort's robot stop has been sent (or there was none)
         self._store_pool: ThreadPoolExecutor | None = None
         self._store_futures: list[Future[None]] = []
+        self._offset_base: tuple[float, ...] | None = None  # where a step's MoveOffset offsets start
+        self._frame_base = 0  # the current step attempt's first frame index
+        self._frames_in_step = 0
         self.error: str | None = None
         self.results: dict[str, Any] | None = None
 
@@ -547,6 +554,7 @@ class SessionRunner:
             record=self.record,
             session_id=sid,
             jobs=self.jobs,
+            calibration=calibration_cell(devices, self.measure_params),
         )
 
     def _steps(self, ctx: PlanContext) -> tuple[list[Step], list[Step]]:
@@ -619,9 +627,19 @@ class SessionRunner:
             previous: Sequence[float] = start
             seen: set[tuple[tuple[float, ...], tuple[float, ...]]] = set()
             for step in steps:
+                base: Sequence[float] = previous  # where a MoveOffset's offsets start (planned)
                 for action in step.actions:
+                    if isinstance(action, MoveOffset):
+                        target = tuple(b + o for b, o in zip(base, action.offset_deg, strict=True))
+                        try:
+                            robot.check_move(target, start_deg=previous)
+                        except MotionRejectedError as exc:
+                            problems.append(f"{step.name}: {exc}")
+                        previous = target
+                        continue
                     if not isinstance(action, MoveJoints):
                         continue
+                    base = action.target_deg
                     key = (tuple(previous), action.target_deg)
                     if key not in seen:
                         seen.add(key)
@@ -677,6 +695,16 @@ class SessionRunner:
         self._event("step_started", {"index": step.index, "name": step.name})
         data: dict[str, Any] = {}
         grabbed: list[tuple[list[Frame], dict[str, Any], int]] = []
+        self._offset_base = None
+        # frame indices of a step's n-th attempt start at n x FRAMES_PER_ATTEMPT (a resumed step never
+        # overwrites or deletes what an interrupted attempt captured); a step's captures count up from there
+        earlier = self.record.captures(sid, step_index=step.index)
+        self._frame_base = (
+            (max(c.frame_index for c in earlier) // FRAMES_PER_ATTEMPT + 1) * FRAMES_PER_ATTEMPT
+            if earlier
+            else 0
+        )
+        self._frames_in_step = 0
         try:
             for action in step.actions:
                 if self._abort:
@@ -684,6 +712,13 @@ class SessionRunner:
                 self._check_store()
                 if isinstance(action, Capture):
                     grabbed.append(self._grab(sid, step, action))
+                elif isinstance(action, Align):
+                    try:
+                        data.update(self._align(sid, step, action, grabbed))
+                    except AlignSkippedError as skipped:
+                        data["skipped"] = str(skipped)
+                        self._event("warning", {"message": f"{step.name}: {skipped}"})
+                        break
                 else:
                     data.update(self._act(sid, step, action, ctx))
         except BaseException as exc:
@@ -767,6 +802,14 @@ class SessionRunner:
             require(devices.robot, "robot").set_speed(action.percent)
         elif isinstance(action, MoveJoints):
             require(devices.robot, "robot").move_joints(action.target_deg)
+            self._offset_base = tuple(action.target_deg)
+        elif isinstance(action, MoveOffset):
+            robot = require(devices.robot, "robot")
+            if self._offset_base is None:
+                raise PlanError("a MoveOffset needs a MoveJoints or an Align before it in its step")
+            target = tuple(b + o for b, o in zip(self._offset_base, action.offset_deg, strict=True))
+            robot.check_move(target)  # from where the arm is: the aligned pose differs from the planned one
+            robot.move_joints(target)
         elif isinstance(action, MoveTable):
             table = require(devices.table, "table")
             timeout = getattr(self.params, "prompt_timeout_s", None)
@@ -780,6 +823,61 @@ class SessionRunner:
         else:
             raise PlanError(f"unknown action {action!r}")
         return {}
+
+    def _align(
+        self,
+        sid: str,
+        step: Step,
+        action: Align,
+        grabbed: list[tuple[list[Frame], dict[str, Any], int]],
+    ) -> dict[str, Any]:
+        """Measure, correct within bounds, check, move; repeat (see :class:`~station.plans.Align`)."""
+        devices = self.devices
+        assert devices is not None
+        robot = require(devices.robot, "robot")
+        planned = action.planned_deg
+        corrections: list[dict[str, Any]] = []
+        for iteration in range(action.max_iterations + 1):
+            capture = self._grab(sid, step, Capture(1, {**action.meta, "iteration": iteration}))
+            grabbed.append(capture)  # stored like any capture: nothing captured is lost
+            frames, meta, _ = capture
+            z_mm = meta.get("z_mm")  # the distance sensor's reading with the frame (None without one)
+            image = frames[0].image
+            center: tuple[float, float] | None = None
+            error: str | None = None
+            try:
+                m = measure(image, self.measure_params)
+                center = (float(m.center_px[0]), float(m.center_px[1]))
+            except MeasurementError as exc:
+                error = exc.message
+            joints = tuple(float(a) for a in meta.get("joints_deg", planned))
+            seen = AlignInput(joints, center, z_mm, (int(image.shape[1]), int(image.shape[0])), error)
+            correction = action.correct(seen)
+            if correction is None:
+                self._offset_base = joints
+                return {"aligned_joints_deg": list(joints), "corrections": corrections}
+            if iteration == action.max_iterations:
+                break
+            worst = max(abs(t - p) for t, p in zip(correction.target_deg, planned, strict=True))
+            if correction.translation_mm > action.max_translation_mm or worst > action.max_joint_deg:
+                raise AlignSkippedError(
+                    f"the correction ({correction.translation_mm:.3f} mm, {worst:.3f} deg from the planned"
+                    f" pose) exceeds its bounds ({action.max_translation_mm} mm, {action.max_joint_deg} deg):"
+                    " the artifact is not where the cell says; configuration skipped"
+                )
+            robot.check_move(correction.target_deg)
+            robot.move_joints(correction.target_deg)
+            corrections.append(
+                {"iteration": iteration, "translation_mm": correction.translation_mm, "z_mm": z_mm}
+            )
+            if action.settle_s:
+                with self._lock:
+                    self._cond.wait_for(lambda: self._abort, timeout=action.settle_s)
+                if self._abort:
+                    raise _AbortRequestedError()
+        raise AlignSkippedError(
+            f"not aligned after {action.max_iterations} corrections: configuration skipped"
+        )
 
     def _grab(self, sid: str, step: Step, action: Capture) -> tuple[list[Frame], dict[str, Any], int]:
         """In the runner thread (the devices' only user): where the arm is, then the frames."""
@@ -800,15 +898,10 @@ class SessionRunner:
             meta["z_mm"] = z_mm
             if z_error is not None:
                 meta["z_error"] = z_error
-        # frame indices of a step's n-th attempt start at n x FRAMES_PER_ATTEMPT (a resumed step never
-        # overwrites or deletes what an interrupted attempt captured)
-        earlier = self.record.captures(sid, step_index=step.index)
-        first = (
-            (max(c.frame_index for c in earlier) // FRAMES_PER_ATTEMPT + 1) * FRAMES_PER_ATTEMPT
-            if earlier
-            else 0
-        )
-        return devices.camera.grab_many(action.frames), meta, first
+        first = self._frame_base + self._frames_in_step
+        frames = devices.camera.grab_many(action.frames)
+        self._frames_in_step += len(frames)
+        return frames, meta, first
 
     def _read_z(self, sensor: DistanceSensor) -> tuple[float | None, str | None]:
         """The distance sensor's reading for a capture: (mm, None), or (None, why) when it has no valid
@@ -950,7 +1043,7 @@ def require(device: Any, name: str) -> Any:
 
 
 def step_moves(step: Step) -> bool:
-    return any(isinstance(a, MoveJoints | MoveTable) for a in step.actions)
+    return any(isinstance(a, MoveJoints | MoveTable | MoveOffset | Align) for a in step.actions)
 
 
 def camera_height_function(devices: StationDevices | None) -> Callable[[Sequence[float]], float] | None:
@@ -973,3 +1066,13 @@ def camera_height_function(devices: StationDevices | None) -> Callable[[Sequence
         return float((kin.forward(joints) @ offset)[2]) - z0
 
     return height
+
+
+def calibration_cell(devices: StationDevices | None, measure_params: MeasureParams) -> Any:
+    """The calibration plan's view of the cell (``CalibrationCell``) from the station's configuration;
+    ``None`` when it lacks ``[calibration]``, the robot or the distance sensor."""
+    if devices is None or devices.distance_sensor is None:
+        return None
+    from station.calibration_session import calibration_cell_from_config
+
+    return calibration_cell_from_config(devices.config.model_dump(mode="json"), measure_params)

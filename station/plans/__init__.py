@@ -27,6 +27,7 @@ from pydantic import BaseModel
 from station._pydantic import problems as describe
 
 if TYPE_CHECKING:
+    from station.plans.calibration import CalibrationCell
     from station.record import Record
     from station.vision import MeasureParams
 
@@ -77,7 +78,65 @@ class Compute:
     label: str = ""
 
 
-Action = MoveJoints | MoveTable | SetSpeed | Settle | Capture | Compute
+@dataclass(frozen=True)
+class MoveOffset:
+    """Move the arm to the pose the last :class:`Align` reached plus ``offset_deg`` (six joint deltas).
+
+    Pre-flight checks it from the step's planned pose; the runner checks it again with ``check_move``
+    from where the arm is before sending it.
+    """
+
+    offset_deg: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class Correction:
+    """What :attr:`Align.correct` asks for: a joint target and the camera translation it makes (mm)."""
+
+    target_deg: tuple[float, ...]
+    translation_mm: float
+
+
+@dataclass(frozen=True)
+class AlignInput:
+    """What :attr:`Align.correct` sees: where the arm is (encoders), the measured crossing (px; None with
+    the measurement's ``error`` when it failed), the distance sensor's reading (None without a sensor)."""
+
+    joints_deg: tuple[float, ...]
+    center_px: tuple[float, float] | None
+    z_mm: float | None
+    image_size: tuple[int, int]
+    error: str | None = None
+
+
+class AlignSkippedError(Exception):
+    """An :class:`Align` cannot bring the crossing into place here (not seen, correction out of bounds):
+    the step's remaining actions are skipped and the reason recorded with the step."""
+
+
+@dataclass(frozen=True)
+class Align:
+    """A data-dependent correction before a capture (focus and re-centring).
+
+    The runner grabs a frame (stored like any capture, ``meta`` role ``align``), measures it, reads the
+    distance sensor when there is one, and calls ``correct`` with an :class:`AlignInput`: ``None`` when
+    aligned, else a :class:`Correction`. A correction moving the camera more than ``max_translation_mm``,
+    or putting a joint more than ``max_joint_deg`` from the step's planned pose, is refused
+    (:class:`AlignSkippedError`); one within is checked with ``check_move`` and sent, then the arm
+    settles ``settle_s`` and the loop repeats, at most ``max_iterations`` times. ``correct`` raises
+    :class:`AlignSkippedError` when the crossing is not seen.
+    """
+
+    correct: Callable[[AlignInput], Correction | None]
+    planned_deg: tuple[float, ...]
+    meta: Mapping[str, Any]
+    max_translation_mm: float = 2.0
+    max_joint_deg: float = 2.0
+    max_iterations: int = 6
+    settle_s: float = 0.25
+
+
+Action = MoveJoints | MoveTable | SetSpeed | Settle | Capture | Compute | Align | MoveOffset
 
 
 @dataclass(frozen=True)
@@ -125,6 +184,7 @@ class PlanContext:
     record: Record | None = None
     session_id: str | None = None
     jobs: int = 1
+    calibration: CalibrationCell | None = None
 
 
 class PlanError(ValueError):
@@ -153,17 +213,18 @@ class Plan(Protocol):
 
 def get_plan(name: str) -> Plan:
     """The plan called ``name``; PlanError listing the plans otherwise."""
+    from station.plans.calibration import CALIBRATION
     from station.plans.offline import REANALYSE, SWEEP
     from station.plans.repeatability import REPEATABILITY
     from station.plans.validation import VALIDATION
 
-    plans: dict[str, Plan] = {p.name: p for p in (VALIDATION, REPEATABILITY, SWEEP, REANALYSE)}
+    plans: dict[str, Plan] = {p.name: p for p in (VALIDATION, REPEATABILITY, SWEEP, REANALYSE, CALIBRATION)}
     if name not in plans:
         raise PlanError(f"no plan named {name!r}; plans: {', '.join(sorted(plans))}")
     return plans[name]
 
 
-PLAN_NAMES = ("validation", "repeatability", "sweep", "reanalyse")
+PLAN_NAMES = ("validation", "repeatability", "sweep", "reanalyse", "calibration")
 
 
 def parse_params(plan: Plan, values: Mapping[str, Any]) -> BaseModel:
@@ -180,10 +241,15 @@ def parse_params(plan: Plan, values: Mapping[str, Any]) -> BaseModel:
 __all__ = [
     "PLAN_NAMES",
     "Action",
+    "Align",
+    "AlignInput",
+    "AlignSkippedError",
     "Capture",
     "CaptureResult",
     "Compute",
+    "Correction",
     "MoveJoints",
+    "MoveOffset",
     "MoveTable",
     "Plan",
     "PlanContext",

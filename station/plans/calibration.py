@@ -1,0 +1,350 @@
+"""The ``calibration`` plan: capture what identifies the arm's kinematic errors.
+
+For each artifact placement of the cell (``[calibration] artifacts_mm``), for each turn of the camera about
+its optical axis (within +/-30 deg of a multiple of 90 deg: precise mode measures the cross there) and
+for each joint solution the nominal inverse kinematics gives within the joint limits (wrist flips,
+shoulder and elbow combinations), one **configuration**:
+
+1. the arm travels there through a lift pose (upper arm and forearm upright: the camera high above every
+   artifact) and descends, every move split into steps within the driver's step limit;
+2. :class:`~station.plans.Align` brings the camera to its working distance (the distance sensor's reading,
+   within ``focus_tolerance_mm``) and the crossing to the image centre (within ``centre_tolerance_mm``):
+   measured, data-dependent corrections along the camera's axes (focus first when the image is too
+   blurred to measure), each move at most 2 mm, never more than 2 deg per joint from the planned pose,
+   each checked with ``check_move`` by the runner before it is sent;
+3. a ``pose`` capture, then small in-view motions (camera shifts of ``inview_mm`` along its x and y and
+   turns of ``inview_turn_deg`` about its axis, as joint offsets from the aligned pose) each captured
+   (``inview``), and the pose again (``return``: the arm's repeatability, from which the relative error's
+   floor is estimated).
+
+Every planned move is a pure function of the parameters and the cell, so pre-flight checks the whole
+session before anything moves. Captures carry ``configuration``, ``placement``, ``turn_deg``,
+``solution`` and ``kind`` in their metadata; the joints (encoders) and the distance sensor's reading are
+recorded with each. Identification is offline (:mod:`station.calibration`) and re-runs on any stored
+session (``station calibrate SESSION``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from station.kinematics import Kinematics, KinematicsError, rot_z, transform
+from station.plans import (
+    Align,
+    AlignInput,
+    AlignSkippedError,
+    Capture,
+    CaptureResult,
+    Correction,
+    MoveJoints,
+    MoveOffset,
+    PlanContext,
+    PlanError,
+    SetSpeed,
+    Settle,
+    Step,
+)
+
+FloatArray = npt.NDArray[np.float64]
+
+MAX_CORRECTION_MM = 1.9
+"""The longest single focus/re-centring move (within the runner's 2 mm bound); longer ones go in parts."""
+
+#: The camera looking straight down (its z along the base's -z), image x along the base's -x: the sim
+#: world's reference orientation; a turn about the optical axis is applied on top.
+LOOK_DOWN = np.diag([-1.0, 1.0, -1.0])
+
+
+@dataclass(frozen=True)
+class CalibrationCell:
+    """What the plan knows of the cell: the nominal arm with the camera as tool, where the artifacts are,
+    the optics and the distance sensor's mount (sensor frame in the camera frame; beam along its +z)."""
+
+    kinematics: Kinematics
+    artifacts_mm: tuple[tuple[float, float, float], ...]
+    working_distance_mm: float
+    focal_px: float
+    principal_px: tuple[float, float] | None = None
+    sensor_mount: FloatArray | None = None
+    max_step_deg: float = 30.0
+    reference_joints_deg: tuple[float, ...] | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def depth_from_sensor(self, z_mm: float) -> float:
+        """The artifact plane's depth along the optical axis from a sensor reading (beam parallel to the
+        axis, plane square to it: a tilt t of the plane moves it by the mount's lateral offset x tan t)."""
+        if self.sensor_mount is None:
+            raise PlanError("the cell has no distance sensor mount")
+        R, t = self.sensor_mount[:3, :3], self.sensor_mount[:3, 3]
+        return float(R[2, 2] * z_mm + t[2])
+
+    def sensor_reading_at(self, depth_mm: float) -> float:
+        """The reading the sensor gives with the artifact plane square to the axis at ``depth_mm``."""
+        if self.sensor_mount is None:
+            raise PlanError("the cell has no distance sensor mount")
+        R, t = self.sensor_mount[:3, :3], self.sensor_mount[:3, 3]
+        return float((depth_mm - t[2]) / R[2, 2])
+
+
+class CalibrationParams(BaseModel):
+    """Parameters of a calibration session (defaults: the full configuration, about 5 minutes on the
+    simulated station)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    placements: list[int] | None = Field(
+        None, description="indices of the cell's artifacts_mm to use (default: all of them)"
+    )
+    turns_deg: list[float] = Field(
+        default_factory=lambda: [-20.0, 20.0, 70.0, 110.0, 160.0, 200.0, 250.0, 290.0],
+        description="camera turns about the optical axis (deg), each within 30 deg of a multiple of 90",
+    )
+    solutions: int = Field(4, ge=1, le=8, description="joint solutions per camera pose (wrist, shoulder)")
+    inview_mm: float = Field(1.2, ge=0.0, le=2.0, description="in-view camera shift along x and y (mm)")
+    inview_turn_deg: float = Field(10.0, ge=0.0, le=30.0, description="in-view turn about the axis (deg)")
+    focus_tolerance_mm: float = Field(0.05, gt=0, le=0.5, description="|distance - working distance| (mm)")
+    centre_tolerance_mm: float = Field(0.05, gt=0, le=1.0, description="crossing to image centre (mm)")
+    speed_pct: int = Field(50, ge=1, le=100)
+    settle_s: float = Field(0.25, ge=0.0, le=10.0)
+    holdout_fraction: float = Field(0.25, ge=0.0, lt=0.9, description="configurations held out of the fit")
+    seed: int = Field(0, description="which configurations are held out")
+
+    @field_validator("turns_deg")
+    @classmethod
+    def _turns(cls, v: list[float]) -> list[float]:
+        if not v:
+            raise ValueError("turns_deg needs at least one turn")
+        for t in v:
+            if not math.isfinite(t):
+                raise ValueError(f"turns_deg must be finite, got {t}")
+            off = (t + 45.0) % 90.0 - 45.0
+            if abs(off) > 30.0:
+                raise ValueError(
+                    f"turn {t} deg is {abs(off):.1f} deg from a multiple of 90: precise mode measures the"
+                    " cross within 30 deg of its image axes; use turns within +/-30 deg of 0, 90, 180, 270"
+                )
+        return v
+
+
+@dataclass(frozen=True)
+class Configuration:
+    """One planned configuration: where the camera should be and the joints that put it there."""
+
+    index: int
+    placement: int
+    turn_deg: float
+    solution: int
+    joints_deg: tuple[float, ...]
+    camera_pose: FloatArray
+
+
+def split_move(start: Sequence[float], end: Sequence[float], max_step_deg: float) -> list[tuple[float, ...]]:
+    """Waypoints from ``start`` (excluded) to ``end`` (included), no joint moving more than ``max_step_deg``
+    between two of them."""
+    a, b = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
+    n = max(1, math.ceil(float(np.max(np.abs(b - a))) / max_step_deg - 1e-9))
+    return [tuple(float(v) for v in a + (b - a) * (k / n)) for k in range(1, n + 1)]
+
+
+def lift_pose(q: Sequence[float]) -> tuple[float, ...]:
+    """Upper arm and forearm upright, the other joints where they are: the camera high above the cell."""
+    return (float(q[0]), 0.0, 0.0, float(q[3]), float(q[4]), float(q[5]))
+
+
+def _cell(ctx: PlanContext) -> CalibrationCell:
+    if ctx.calibration is None:
+        raise PlanError(
+            "a calibration session needs the cell's [calibration] section (artifacts_mm, "
+            "working_distance_mm, pixel_mm), a robot with camera_offset_mm in its safety settings and a "
+            "distance sensor with its mount; see the README's calibration section"
+        )
+    return ctx.calibration
+
+
+class CalibrationPlan:
+    name = "calibration"
+    Params = CalibrationParams
+    needs = frozenset({"robot", "camera", "distance_sensor"})
+
+    # ---------------------------------------------------------------- configurations
+
+    def configurations(self, params: CalibrationParams, cell: CalibrationCell) -> list[Configuration]:
+        """Every configuration the session visits, in order (placement by placement)."""
+        placements = (
+            params.placements if params.placements is not None else list(range(len(cell.artifacts_mm)))
+        )
+        for p in placements:
+            if not 0 <= p < len(cell.artifacts_mm):
+                raise PlanError(
+                    f"placement {p} is not in the cell: artifacts_mm has {len(cell.artifacts_mm)} entries"
+                )
+        kin = cell.kinematics
+        out: list[Configuration] = []
+        for p in placements:
+            x, y, z = cell.artifacts_mm[p]
+            here: list[tuple[int, float, tuple[float, ...], FloatArray]] = []
+            for turn in params.turns_deg:
+                R = LOOK_DOWN @ rot_z(math.radians(turn))
+                pose = transform(R, (x, y, z + cell.working_distance_mm))
+                try:
+                    sols = kin.inverse_all(pose)
+                except KinematicsError:
+                    sols = []
+                # solutions numbered by branch (shoulder, elbow, wrist), whatever the turn: the signs of
+                # joints 2/3 and whether joint 5 is negative; the upright-arm ones first
+                sols.sort(key=lambda s: (abs(s[1]) + abs(s[2]), s[4] < 0, abs(s[3])))
+                for k, q in enumerate(sols[: params.solutions]):
+                    here.append((k, float(turn), tuple(float(a) for a in q), pose))
+            if not here:
+                raise PlanError(
+                    f"placement {p} at {cell.artifacts_mm[p]} mm: no joint solution within the limits puts "
+                    "the camera over it at the working distance; move the artifact or drop the placement"
+                )
+            # one branch at a time, turning the camera in between: the arm travels through the lift pose
+            # only when it changes branch or placement
+            here.sort(key=lambda h: (h[0], params.turns_deg.index(h[1])))
+            for k, turn, joints, camera in here:
+                out.append(Configuration(len(out), p, turn, k, joints, camera))
+        return out
+
+    def _inview_offsets(
+        self, params: CalibrationParams, cell: CalibrationCell, c: Configuration
+    ) -> list[tuple[str, tuple[float, ...]]]:
+        """Joint offsets (from the configuration's joints) for the small in-view motions."""
+        kin = cell.kinematics
+        d, a = params.inview_mm, math.radians(params.inview_turn_deg)
+        moves: list[tuple[str, FloatArray]] = []
+        if d > 0:
+            for name, v in (("+x", (d, 0, 0)), ("-x", (-d, 0, 0)), ("+y", (0, d, 0)), ("-y", (0, -d, 0))):
+                moves.append((name, transform(np.eye(3), v)))
+        if a > 0:
+            for name, ang in (("+turn", a), ("-turn", -a)):
+                moves.append((name, transform(rot_z(ang), (0, 0, 0))))
+        out = []
+        q0 = np.asarray(c.joints_deg)
+        for name, M in moves:
+            try:
+                q = kin.inverse(c.camera_pose @ M, seed_deg=q0)
+            except KinematicsError:
+                continue
+            off = q - q0
+            if np.max(np.abs(off)) > 15.0:  # another branch: not a small motion
+                continue
+            out.append((name, tuple(float(v) for v in off)))
+        return out
+
+    # ---------------------------------------------------------------- steps
+
+    def steps(self, params: CalibrationParams, ctx: PlanContext) -> Iterator[Step]:
+        cell = _cell(ctx)
+        configs = self.configurations(params, cell)
+        step_limit = cell.max_step_deg * 0.9
+        previous: tuple[float, ...] | None = ctx.reference_joints_deg or cell.reference_joints_deg
+        prev_config: Configuration | None = None
+        for c in configs:
+            meta = {
+                "configuration": c.index,
+                "placement": c.placement,
+                "turn_deg": c.turn_deg,
+                "solution": c.solution,
+            }
+            moves: list[tuple[float, ...]] = []
+            same_branch = (
+                prev_config is not None
+                and prev_config.placement == c.placement
+                and prev_config.solution == c.solution
+            )
+            if previous is None:
+                moves.append(c.joints_deg)
+            elif same_branch:
+                moves += split_move(previous, c.joints_deg, step_limit)
+            else:
+                up_from, up_to = lift_pose(previous), lift_pose(c.joints_deg)
+                moves += split_move(previous, up_from, step_limit)
+                moves += split_move(up_from, up_to, step_limit)
+                moves += split_move(up_to, c.joints_deg, step_limit)
+            actions: list[Any] = [SetSpeed(params.speed_pct)] if prev_config is None else []
+            actions += [MoveJoints(q) for q in moves]
+            if params.settle_s:
+                actions.append(Settle(params.settle_s))
+            actions.append(
+                Align(
+                    correct=self._corrector(params, cell),
+                    planned_deg=c.joints_deg,
+                    meta={**meta, "kind": "align"},
+                    settle_s=params.settle_s,
+                )
+            )
+            actions.append(Capture(1, {**meta, "kind": "pose"}))
+            for name, off in self._inview_offsets(params, cell, c):
+                actions.append(MoveOffset(off))
+                if params.settle_s:
+                    actions.append(Settle(params.settle_s))
+                actions.append(Capture(1, {**meta, "kind": "inview", "motion": name}))
+            actions.append(MoveOffset((0.0,) * 6))
+            if params.settle_s:
+                actions.append(Settle(params.settle_s))
+            actions.append(Capture(1, {**meta, "kind": "return"}))
+            yield Step(
+                c.index,
+                f"placement {c.placement} turn {c.turn_deg:g} solution {c.solution}",
+                tuple(actions),
+                meta,
+            )
+            previous, prev_config = c.joints_deg, c
+
+    def _corrector(self, params: CalibrationParams, cell: CalibrationCell) -> Any:
+        kin = cell.kinematics
+
+        def correct(seen: AlignInput) -> Correction | None:
+            if seen.z_mm is None:
+                raise AlignSkippedError("no distance reading: the working distance cannot be checked")
+            depth = cell.depth_from_sensor(seen.z_mm)
+            dz = depth - cell.working_distance_mm
+            if seen.center_px is None:
+                if abs(dz) <= params.focus_tolerance_mm:
+                    raise AlignSkippedError(
+                        f"the crossing is not measured here ({seen.error}): configuration skipped"
+                    )
+                dx = dy = 0.0  # out of focus: focus first (the sensor needs no image), then look again
+            else:
+                cx, cy = cell.principal_px or ((seen.image_size[0] - 1) / 2.0, (seen.image_size[1] - 1) / 2.0)
+                dx = (seen.center_px[0] - cx) * depth / cell.focal_px
+                dy = (seen.center_px[1] - cy) * depth / cell.focal_px
+                if math.hypot(dx, dy) <= params.centre_tolerance_mm and abs(dz) <= params.focus_tolerance_mm:
+                    return None
+            step = np.array([dx, dy, dz])
+            size = float(np.linalg.norm(step))
+            if size > MAX_CORRECTION_MM:  # a long way: go part of it, then measure again
+                step *= MAX_CORRECTION_MM / size
+            here = kin.forward(seen.joints_deg)
+            try:
+                q = kin.inverse(here @ transform(np.eye(3), step), seed_deg=seen.joints_deg)
+            except KinematicsError as exc:
+                raise AlignSkippedError(f"the correction cannot be reached: {exc}") from exc
+            return Correction(tuple(float(a) for a in q), float(np.linalg.norm(step)))
+
+        return correct
+
+    def resume_prelude(self, params: CalibrationParams, ctx: PlanContext, next_step: Step) -> list[Step]:
+        """Nothing: each configuration's step begins with its own travel (lift, swing, descend)."""
+        return []
+
+    # ---------------------------------------------------------------- analysis
+
+    def analyse(
+        self, params: CalibrationParams, ctx: PlanContext, captures: Sequence[CaptureResult]
+    ) -> dict[str, Any]:
+        from station.calibration_session import analyse_calibration
+
+        return analyse_calibration(params, _cell(ctx), captures)
+
+
+CALIBRATION = CalibrationPlan()
