@@ -191,13 +191,17 @@ def identify(
         )
     arrays = observation_arrays(train, model.placements)
 
+    m = 2 * len(arrays) + int(arrays.has_z.sum())
+    if m <= len(model.artifact_indices()):
+        raise CalibrationError(
+            f"{m} residuals cannot even place {len(model.placements)} artifact(s): capture more configurations"
+        )
     # (1) the "before": nominal kinematics, artifacts fitted alone
     start = initial_artifacts(model, train)
     before, _ = _least_squares(model, start, model.artifact_indices(), arrays, sig, max_nfev)
     # (2) identifiability at nominal
     report = analyse_identifiability(model, model.jacobian(before, arrays, sig), rcond=rcond)
     free = [model.index[n] for n in report.identified]
-    m = 2 * len(arrays) + int(arrays.has_z.sum())
     if m <= len(free):
         raise CalibrationError(
             f"{m} residuals cannot determine {len(free)} parameters: capture more configurations"
