@@ -88,7 +88,7 @@ def _least_squares(
         return model.weighted_residuals(full(x), arrays, sigmas)
 
     def jac(x: FloatArray) -> FloatArray:
-        return model.jacobian(full(x), arrays, sigmas, idx)
+        return model.jacobian(full(x), arrays, sigmas, free)
 
     sol = scipy.optimize.least_squares(
         fun,
@@ -194,7 +194,8 @@ def identify(
     m = 2 * len(arrays) + int(arrays.has_z.sum())
     if m <= len(model.artifact_indices()):
         raise CalibrationError(
-            f"{m} residuals cannot even place {len(model.placements)} artifact(s): capture more configurations"
+            f"{m} residuals cannot even place {len(model.placements)} artifact(s):"
+            " capture more configurations"
         )
     # (1) the "before": nominal kinematics, artifacts fitted alone
     start = initial_artifacts(model, train)

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -155,7 +156,7 @@ class CalibrationResult(_Model):
     def to_json(self) -> str:
         return self.model_dump_json(indent=2)
 
-    def save(self, path: str | Path) -> Path:
+    def save(self, path: str | os.PathLike[str]) -> Path:
         """Write the JSON document (UTF-8) and return its path."""
         p = Path(path)
         p.write_text(self.to_json() + "\n", encoding="utf-8")
@@ -183,7 +184,7 @@ class CalibrationResult(_Model):
             raise CalibrationError(f"{source} is not a valid calibration result: {problems(exc)}") from exc
 
     @classmethod
-    def load(cls, path: str | Path) -> CalibrationResult:
+    def load(cls, path: str | os.PathLike[str]) -> CalibrationResult:
         """Read a document written by :meth:`save`."""
         p = Path(path)
         try:

@@ -104,12 +104,12 @@ def session(
             target = transform(R, truth.points[k] - 68.0 * R[:, 2] + offset)
             for q in kin.inverse_all(target)[:max_solutions]:
                 (u, v), z = observe(truth, q, k, rng, noise_mm)
-                out.append(Observation(tuple(q), (u, v), z, config, k, "pose"))  # type: ignore[arg-type]
+                out.append(Observation(tuple(q), (u, v), z, config, k, "pose"))
                 for _ in range(inview):  # small joint motions that keep the crossing in view
                     q2 = q + rng.uniform(-1.0, 1.0, 6) * np.array([0.04, 0.04, 0.04, 0.1, 0.1, 1.0])
                     (u, v), z = observe(truth, q2, k, rng, noise_mm)
                     if not (0 <= u < CAMERA.width and 0 <= v < CAMERA.height):
                         raise AssertionError(f"an in-view motion left the field of view: ({u}, {v})")
-                    out.append(Observation(tuple(q2), (u, v), z, config, k, "inview"))  # type: ignore[arg-type]
+                    out.append(Observation(tuple(q2), (u, v), z, config, k, "inview"))
                 config += 1
     return out

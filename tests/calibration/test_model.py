@@ -65,7 +65,7 @@ def test_predicted_pixel_and_reading_are_what_the_sim_camera_and_sensor_see():
     world = World(WorldSpec())
     setup, model, delta = _world_setup(world)
     q = _near_reference(world, 10, 2)
-    obs = [Observation(tuple(row), (0.0, 0.0), None, i, 0) for i, row in enumerate(q)]  # type: ignore[arg-type]
+    obs = [Observation(tuple(row), (0.0, 0.0), None, i, 0) for i, row in enumerate(q)]
     px, z = model.predict(delta, observation_arrays(obs, model.placements))
     art = world.artifact_pose()
     for row, uv, reading in zip(q, px, z, strict=True):
@@ -113,6 +113,6 @@ def test_rejects_a_bad_observation_naming_the_field(kwargs, message):
 def test_rejects_observations_of_a_placement_the_setup_does_not_know():
     world = World(WorldSpec())
     _, model, _ = _world_setup(world)
-    obs = [Observation((0.0,) * 6, (1.0, 2.0), 68.0, 0, 7)]  # type: ignore[arg-type]
+    obs = [Observation((0.0,) * 6, (1.0, 2.0), 68.0, 0, 7)]
     with pytest.raises(CalibrationError, match=r"placements \[7\]"):
         observation_arrays(obs, model.placements)
