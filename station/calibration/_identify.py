@@ -300,7 +300,7 @@ def _identifiability_model(report: IdentifiabilityReport) -> IdentifiabilityMode
         null_dimension=report.null_dimension,
         structural=[deficiency(d) for d in report.structural],
         structural_verified=report.structural_verified,
-        deficient=list(report.deficient),
+        deficient=[reported_name(n) for n in report.deficient],
         dropped=[deficiency(d) for d in report.dropped],
     )
 
