@@ -12,6 +12,7 @@ held out of the fit, and their relative error (``relative_error_um``) before and
 from __future__ import annotations
 
 import datetime as dt
+import logging
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -46,6 +47,8 @@ from station.calibration._result import (
     ParameterEstimate,
     ResidualSummary,
 )
+
+log = logging.getLogger(__name__)
 
 
 def _utc_now() -> dt.datetime:
@@ -203,6 +206,15 @@ def identify(
     # (2) identifiability at nominal
     report = analyse_identifiability(model, model.jacobian(before, arrays, sig), rcond=rcond)
     free = [model.index[n] for n in report.identified]
+    log.info(
+        "identifying %d parameters from %d observations (%d held out); condition number %.3g;"
+        " not determined by this data: %s",
+        len(free),
+        len(arrays),
+        len(test),
+        report.condition_number,
+        ", ".join(report.deficient) or "none",
+    )
     if m <= len(free):
         raise CalibrationError(
             f"{m} residuals cannot determine {len(free)} parameters: capture more configurations"

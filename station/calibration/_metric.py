@@ -23,6 +23,7 @@ offset (x, y): below 0.1 um for phi = 1 mrad and a crossing within 1 mm of the i
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -30,10 +31,17 @@ import numpy.typing as npt
 from station.calibration._observations import CalibrationError, CameraModel, FloatArray, Observation
 from station.kinematics import Kinematics
 
+if TYPE_CHECKING:
+    from station.calibration._result import CalibrationResult
+
+
+def _kinematics(model: Kinematics | CalibrationResult) -> Kinematics:
+    return model if isinstance(model, Kinematics) else model.kinematics()
+
 
 def crossing_positions(
     observations: Sequence[Observation],
-    kinematics: Kinematics,
+    kinematics: Kinematics | CalibrationResult,
     camera: CameraModel,
     sensor_mount: npt.ArrayLike,
 ) -> FloatArray:
@@ -54,13 +62,13 @@ def crossing_positions(
             z,
         ]
     )
-    C = kinematics.tool_pose(q)
+    C = _kinematics(kinematics).tool_pose(q)
     return np.asarray(np.einsum("nij,nj->ni", C[:, :3, :3], local) + C[:, :3, 3], dtype=float)
 
 
 def pair_errors_um(
     observations: Sequence[Observation],
-    kinematics: Kinematics,
+    kinematics: Kinematics | CalibrationResult,
     camera: CameraModel,
     sensor_mount: npt.ArrayLike,
     *,
@@ -73,7 +81,8 @@ def pair_errors_um(
     observations
         Captures; only ``kind == "pose"`` ones with a sensor reading are used.
     kinematics
-        The model judged (nominal, calibrated or true), with the camera as its tool.
+        The model judged (nominal, calibrated or true), with the camera as its tool; or a
+        ``CalibrationResult`` (its calibrated kinematics).
     camera, sensor_mount
         The camera's intrinsics and the sensor's pose in the camera frame (4x4).
     plane_normals
@@ -86,7 +95,7 @@ def pair_errors_um(
     positions = crossing_positions(used, kinematics, camera, sensor_mount)
     placement = np.array([o.placement for o in used])
     config = np.array([o.configuration for o in used])
-    axes = kinematics.tool_pose(np.array([o.joints_deg for o in used], dtype=float))[:, :3, 2]
+    axes = _kinematics(kinematics).tool_pose(np.array([o.joints_deg for o in used], dtype=float))[:, :3, 2]
     errors: list[FloatArray] = []
     for k in np.unique(placement):
         idx = np.flatnonzero(placement == k)
@@ -105,7 +114,7 @@ def pair_errors_um(
 
 def relative_error_um(
     observations: Sequence[Observation],
-    kinematics: Kinematics,
+    kinematics: Kinematics | CalibrationResult,
     camera: CameraModel,
     sensor_mount: npt.ArrayLike,
     *,

@@ -58,6 +58,13 @@ class Observation:
     kind: ObservationKind = "pose"
 
     def __post_init__(self) -> None:
+        try:  # lists and numpy arrays become tuples of floats
+            object.__setattr__(self, "joints_deg", tuple(float(v) for v in self.joints_deg))
+            object.__setattr__(self, "center_px", tuple(float(v) for v in self.center_px))
+            if self.z_mm is not None:
+                object.__setattr__(self, "z_mm", float(self.z_mm))
+        except (TypeError, ValueError) as exc:
+            raise CalibrationError(f"an observation's values must be numbers: {exc}") from exc
         if len(self.joints_deg) != JOINTS or not all(math.isfinite(v) for v in self.joints_deg):
             raise CalibrationError(
                 f"joints_deg must be {JOINTS} finite angles (deg), got {self.joints_deg!r}"

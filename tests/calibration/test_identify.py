@@ -12,6 +12,7 @@ from station.calibration import (
     analyse,
     equivalent_errors,
     identify,
+    observation_arrays,
     relative_error_um,
     reported_name,
 )
@@ -129,3 +130,30 @@ def test_refuses_holding_out_every_configuration(fitted):
     every = sorted({o.configuration for o in fitted.observations})
     with pytest.raises(CalibrationError, match="held out"):
         identify(fitted.observations, synthetic.setup_for(), holdout=every)
+
+
+def test_equivalent_errors_reproduce_the_true_arms_measurements_with_the_structural_list_nominal(fitted):
+    setup = synthetic.setup_for()
+    model = CalibrationModel(setup)
+    truth = fitted.truth
+    delta = equivalent_errors(
+        model,
+        truth.kinematics.dh,
+        truth.kinematics.tool,
+        {k: (truth.points[k], truth.normals[k]) for k in truth.points},
+    )
+    assert all(delta[model.index[n]] == 0.0 for n in ("alpha0", "a0", "d1", "theta1_offset", "d3", "d6"))
+    exact = synthetic.session(truth, seed=21, noise_mm=0.0)
+    xy, dz = model.residuals_mm(delta, observation_arrays(exact, model.placements))
+    assert np.abs(xy).max() < 1e-3  # mm: only d3 x the true alpha2 and beta2 is left (second order)
+    assert np.abs(dz).max() < 1e-3
+    xy_nominal, _ = model.residuals_mm(model.zeros(), observation_arrays(exact, model.placements))
+    assert np.abs(xy_nominal).max() > 0.1
+
+
+def test_relative_error_takes_a_result_for_its_calibrated_model(fitted):
+    held = [o for o in fitted.observations if o.configuration in set(fitted.holdout)]
+    args = (synthetic.CAMERA, synthetic.MOUNT)
+    assert relative_error_um(held, fitted.result, *args) == relative_error_um(
+        held, fitted.result.kinematics(), *args
+    )
