@@ -136,24 +136,35 @@ class IdentifiabilityReport:
         return [n for n in self.deficient if n not in richer.deficient and n in richer.identified]
 
 
-def _combination(
-    Js: FloatArray, norms: FloatArray, units: FloatArray, names: Sequence[str], j: int, basis: Sequence[int]
-) -> tuple[dict[str, float], float]:
-    """Column j as a combination of ``basis`` columns: natural-unit coefficients and relative residual."""
-    target = Js[:, j]
+def _combinations(
+    Js: FloatArray,
+    norms: FloatArray,
+    units: FloatArray,
+    names: Sequence[str],
+    targets: Sequence[int],
+    basis: Sequence[int],
+) -> list[tuple[dict[str, float], float]]:
+    """Each target column as a combination of the ``basis`` columns (one least-squares solve for all):
+    natural-unit coefficients of the significant terms, and the relative residual."""
+    if not targets:
+        return []
+    T = Js[:, list(targets)]
     if not basis:
-        return {}, float(np.linalg.norm(target))
+        return [({}, float(v)) for v in np.linalg.norm(T, axis=0)]
     A = Js[:, list(basis)]
-    coef, *_ = np.linalg.lstsq(A, target, rcond=None)
-    residual = float(np.linalg.norm(target - A @ coef))
-    terms: dict[str, float] = {}
-    order = np.argsort(-np.abs(coef))
-    for o in order[:8]:
-        if abs(coef[o]) < 0.05:
-            break
-        i = basis[o]
-        terms[names[i]] = float(coef[o] * norms[j] / norms[i] * units[i] / units[j])
-    return terms, residual
+    coefs, *_ = np.linalg.lstsq(A, T, rcond=None)
+    residuals = np.linalg.norm(T - A @ coefs, axis=0)
+    out = []
+    for c, j in enumerate(targets):
+        coef = coefs[:, c]
+        terms: dict[str, float] = {}
+        for o in np.argsort(-np.abs(coef))[:8]:
+            if abs(coef[o]) < 0.05:
+                break
+            i = basis[o]
+            terms[names[i]] = float(coef[o] * norms[j] / norms[i] * units[i] / units[j])
+        out.append((terms, float(residuals[c])))
+    return out
 
 
 def analyse_identifiability(
@@ -190,8 +201,9 @@ def analyse_identifiability(
 
     deficiencies = []
     verified = True
-    for j in struct_idx:
-        combo, residual = _combination(Js, safe, units, names, j, cand_idx)
+    for j, (combo, residual) in zip(
+        struct_idx, _combinations(Js, safe, units, names, struct_idx, cand_idx), strict=True
+    ):
         verified &= residual < STRUCTURAL_RCOND * 10 or norms[j] == 0
         deficiencies.append(Deficiency(names[j], combo, residual, STRUCTURAL.get(names[j], "")))
 
@@ -206,10 +218,13 @@ def analyse_identifiability(
     diag = np.abs(np.diag(R))
     rank = int(np.sum(diag > rcond * diag[0]))
     kept = [cand_idx[p] for p in piv[:rank]]
-    dropped = []
-    for p in piv[rank:]:
-        combo, residual = _combination(Js, safe, units, names, cand_idx[p], kept)
-        dropped.append(Deficiency(names[cand_idx[p]], combo, residual))
+    out_idx = [cand_idx[p] for p in piv[rank:]]
+    dropped = [
+        Deficiency(names[j], combo, residual)
+        for j, (combo, residual) in zip(
+            out_idx, _combinations(Js, safe, units, names, out_idx, kept), strict=True
+        )
+    ]
     verified &= rank + len(struct_idx) >= model.size - null_dim  # the structural list spans the null space
     identified = tuple(names[i] for i in sorted(kept))
     s_id = np.linalg.svd(Js[:, sorted(kept)], compute_uv=False)
