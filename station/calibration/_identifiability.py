@@ -100,8 +100,8 @@ class IdentifiabilityReport:
     structural
         The structural deficiencies, each with the combination the data shows it trades with.
     structural_verified
-        Every structural parameter's column is (to ``STRUCTURAL_RCOND``) a combination of the others and
-        the rest's rank accounts for every null direction.
+        Every structural parameter's column is (to ``STRUCTURAL_RCOND``) a combination of the candidates'
+        (on a rich set, ``null_dimension`` is then the structural list's length: nothing else is null).
     candidates
         Every parameter not in the structural list (the identified set on a rich data set).
     identified
@@ -225,7 +225,6 @@ def analyse_identifiability(
             out_idx, _combinations(Js, safe, units, names, out_idx, kept), strict=True
         )
     ]
-    verified &= rank + len(struct_idx) >= model.size - null_dim  # the structural list spans the null space
     identified = tuple(names[i] for i in sorted(kept))
     s_id = np.linalg.svd(Js[:, sorted(kept)], compute_uv=False)
     return IdentifiabilityReport(
