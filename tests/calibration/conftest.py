@@ -6,8 +6,8 @@ from dataclasses import dataclass
 
 import pytest
 
+from sim import calibration_sessions as synthetic
 from station.calibration import CalibrationResult, Observation, identify
-from tests.calibration import synthetic
 
 SEED = 3
 

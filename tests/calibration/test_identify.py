@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from sim import calibration_sessions as synthetic
 from station.calibration import (
     CalibrationError,
     CalibrationModel,
@@ -17,7 +18,6 @@ from station.calibration import (
     reported_name,
 )
 from station.kinematics import A465_DH, Kinematics
-from tests.calibration import synthetic
 
 STRUCTURAL_REPORTED = ["alpha0", "a0", "d1", "theta1_offset", "d2-d3", "d6", "theta6_offset"]
 

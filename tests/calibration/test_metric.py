@@ -7,8 +7,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from sim import calibration_sessions as synthetic
 from station.calibration import CalibrationError, crossing_positions, pair_errors_um, relative_error_um
-from tests.calibration import synthetic
 
 
 @pytest.fixture(scope="module")
