@@ -4,7 +4,7 @@ See CALIBRATION.md in this package for the model, the parameter names, the struc
 format.
 """
 
-from station.calibration._compensation import compensated_joints, joint_steps
+from station.calibration._compensation import compensated_joints, compensated_steps, joint_steps
 from station.calibration._identifiability import (
     REPORTED_NAMES,
     STRUCTURAL,
@@ -46,6 +46,7 @@ __all__ = [
     "analyse",
     "analyse_identifiability",
     "compensated_joints",
+    "compensated_steps",
     "crossing_positions",
     "equivalent_errors",
     "identify",

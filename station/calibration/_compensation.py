@@ -62,4 +62,16 @@ def joint_steps(start_deg: npt.ArrayLike, end_deg: npt.ArrayLike, *, max_step_de
     return [a + (b - a) * (i / n) for i in range(1, n)] + [b.copy()]
 
 
-__all__ = ["compensated_joints", "joint_steps"]
+def compensated_steps(
+    calibrated: Kinematics,
+    camera_pose: npt.ArrayLike,
+    *,
+    current_deg: npt.ArrayLike,
+    max_step_deg: float,
+) -> list[FloatArray]:
+    """The joint waypoints of a compensated move: :func:`compensated_joints`, split by :func:`joint_steps`."""
+    target = compensated_joints(calibrated, camera_pose, current_deg=current_deg)
+    return joint_steps(current_deg, target, max_step_deg=max_step_deg)
+
+
+__all__ = ["compensated_joints", "compensated_steps", "joint_steps"]

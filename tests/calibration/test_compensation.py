@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from station.calibration import CalibrationError, compensated_joints, joint_steps
+from station.calibration import CalibrationError, compensated_joints, compensated_steps, joint_steps
 from station.kinematics import rot_z, transform
 
 
@@ -41,3 +41,13 @@ def test_joint_steps_stay_within_the_largest_step_and_end_exactly():
 def test_joint_steps_rejects_a_bad_step():
     with pytest.raises(CalibrationError, match="max_step_deg"):
         joint_steps(np.zeros(6), np.ones(6), max_step_deg=0.0)
+
+
+def test_compensated_steps_end_at_the_compensated_joints_within_the_step(fitted):
+    calibrated = fitted.result.kinematics()
+    current = np.array(fitted.observations[0].joints_deg)
+    target = calibrated.tool_pose(current) @ transform(rot_z(np.radians(-20.0)), (0.0, 0.0, 0.0))
+    steps = compensated_steps(calibrated, target, current_deg=current, max_step_deg=5.0)
+    assert len(steps) >= 4  # joint 6 turns about 20 deg
+    assert_allclose(steps[-1], compensated_joints(calibrated, target, current_deg=current))
+    assert np.max(np.abs(np.diff(np.vstack([current, *steps]), axis=0))) <= 5.0 + 1e-9
