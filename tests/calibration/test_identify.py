@@ -1,0 +1,159 @@
+"""Identification on synthetic data: the truth recovered within the stated intervals, the relative error
+brought to its floor, the structural list found by the SVD, a poor pose set's deficiencies named."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sim import calibration_sessions as synthetic
+from station.calibration import (
+    CalibrationError,
+    CalibrationModel,
+    analyse,
+    equivalent_errors,
+    identify,
+    observation_arrays,
+    relative_error_um,
+    reported_name,
+)
+from station.kinematics import A465_DH, Kinematics
+
+STRUCTURAL_REPORTED = ["alpha0", "a0", "d1", "theta1_offset", "d2-d3", "d6", "theta6_offset"]
+
+
+def _truth_values(fitted) -> dict[str, float]:
+    """The truth in the identified parameterisation, by reported name (natural units)."""
+    model = CalibrationModel(synthetic.setup_for())
+    truth = fitted.truth
+    delta = equivalent_errors(
+        model,
+        truth.kinematics.dh,
+        truth.kinematics.tool,
+        {k: (truth.points[k], truth.normals[k]) for k in truth.points},
+    )
+    values = model.nominal + delta
+    values[model.index["d2"]] += model.nominal[model.index["d3"]]
+    return {reported_name(n) if n == "d2" else n: float(v) for n, v in zip(model.names, values, strict=True)}
+
+
+def test_every_parameter_outside_the_structural_list_is_identified(fitted):
+    result = fitted.result
+    identified = [p.name for p in result.parameters if p.identified]
+    assert result.identified_count == len(identified) == 25 + 6 + 4 * 5 - 7
+    assert "d2+d3" in identified
+    assert sorted(result.unidentifiable) == sorted(STRUCTURAL_REPORTED)
+    assert not any(p.identified for p in result.parameters if p.structural)
+    assert result.identifiability.deficient == []
+
+
+def test_fit_recovers_the_truth_within_its_intervals(fitted):
+    truth = _truth_values(fitted)
+    z, inside = [], []
+    for p in fitted.result.parameters:
+        if not p.identified:
+            continue
+        assert p.sigma is not None
+        assert p.interval is not None
+        z.append((p.estimate - truth[p.name]) / p.sigma)
+        inside.append(p.interval[0] <= truth[p.name] <= p.interval[1])
+    assert np.mean(inside) >= 0.9, f"{np.mean(inside):.0%} of the intervals hold the truth"
+    assert np.max(np.abs(z)) < 4.0, f"largest error {np.max(np.abs(z)):.2f} sigma"
+
+
+def test_relative_error_after_is_ten_times_smaller_and_near_the_floor(fitted):
+    held = [o for o in fitted.observations if o.configuration in set(fitted.holdout)]
+    nominal = Kinematics(A465_DH, tool=synthetic.NOMINAL_TOOL)
+    before, after, floor = (
+        relative_error_um(held, k, synthetic.CAMERA, synthetic.MOUNT)
+        for k in (nominal, fitted.result.kinematics(), fitted.truth.kinematics)
+    )
+    assert after * 10 <= before
+    assert after <= 2 * floor
+    assert fitted.result.cross_validation.relative_error_um == pytest.approx(
+        {"before": before, "after": after}
+    )
+
+
+def test_fit_explains_the_data_to_the_noise_and_predicts_held_out_configurations(fitted):
+    result = fitted.result
+    assert result.fit.s2 == pytest.approx(1.0, abs=0.3)  # 5 um noise, 5 um sigmas
+    assert result.residuals["after"].rms_xy_mm < 0.01 < result.residuals["before"].rms_xy_mm
+    cv = result.cross_validation
+    assert cv.held_out_configurations == fitted.holdout
+    assert cv.after is not None
+    assert cv.before is not None
+    assert cv.after.rms_xy_mm < 0.015 < cv.before.rms_xy_mm
+
+
+def test_svd_finds_the_structural_list_and_what_each_trades_with(fitted):
+    report = analyse(fitted.observations, synthetic.setup_for())
+    assert report.structural_verified
+    assert report.null_dimension == 7
+    assert report.unidentifiable == STRUCTURAL_REPORTED
+    by_name = {d.name: d for d in report.structural}
+    assert all(d.residual < 1e-6 for d in report.structural)
+    assert by_name["d3"].combination == pytest.approx({"d2": 1.0}, abs=1e-6)
+    assert by_name["d6"].combination == pytest.approx({"tool_z": 1.0}, abs=1e-6)
+    assert by_name["theta6_offset"].combination == pytest.approx({"tool_rz": 1.0}, abs=1e-6)
+    assert by_name["d1"].combination == pytest.approx({f"artifact{k}_z": -1.0 for k in range(4)}, abs=1e-6)
+    assert set(by_name["a0"].combination) == {f"artifact{k}_x" for k in range(4)}
+    assert all(n.startswith("artifact") for n in by_name["theta1_offset"].combination)
+    assert all(n.startswith("artifact") for n in by_name["alpha0"].combination)
+    assert np.isfinite(report.condition_number)
+    assert report.condition_number < 1e6
+
+
+def test_one_configuration_names_what_a_richer_set_resolves(fitted):
+    truth = fitted.truth
+    poor = synthetic.session(truth, seed=11, turns=(0.0,), max_solutions=1, inview=8, placements=(0,))
+    assert len({o.configuration for o in poor}) == 1
+    setup = synthetic.setup_for()
+    poor_report = analyse(poor, setup)
+    rich_report = analyse(fitted.observations, setup)
+    assert len(poor_report.deficient) > 10
+    assert {"a2", "d4", "theta2_offset", "tool_x"} <= set(poor_report.deficient)
+    assert poor_report.dropped
+    assert all(d.name in poor_report.deficient for d in poor_report.dropped)
+    resolved = poor_report.resolved_by(rich_report)
+    assert resolved == list(poor_report.deficient)
+    assert rich_report.deficient == ()
+
+
+def test_refuses_too_little_data_with_what_to_do(fitted):
+    one = [o for o in fitted.observations if o.configuration == 0][:1]
+    with pytest.raises(CalibrationError, match="capture more configurations"):
+        identify(one, synthetic.setup_for())
+
+
+def test_refuses_holding_out_every_configuration(fitted):
+    every = sorted({o.configuration for o in fitted.observations})
+    with pytest.raises(CalibrationError, match="held out"):
+        identify(fitted.observations, synthetic.setup_for(), holdout=every)
+
+
+def test_equivalent_errors_reproduce_the_true_arms_measurements_with_the_structural_list_nominal(fitted):
+    setup = synthetic.setup_for()
+    model = CalibrationModel(setup)
+    truth = fitted.truth
+    delta = equivalent_errors(
+        model,
+        truth.kinematics.dh,
+        truth.kinematics.tool,
+        {k: (truth.points[k], truth.normals[k]) for k in truth.points},
+    )
+    assert all(delta[model.index[n]] == 0.0 for n in ("alpha0", "a0", "d1", "theta1_offset", "d3", "d6"))
+    exact = synthetic.session(truth, seed=21, noise_mm=0.0)
+    xy, dz = model.residuals_mm(delta, observation_arrays(exact, model.placements))
+    assert np.abs(xy).max() < 1e-3  # mm: only d3 x the true alpha2 and beta2 is left (second order)
+    assert np.abs(dz).max() < 1e-3
+    xy_nominal, _ = model.residuals_mm(model.zeros(), observation_arrays(exact, model.placements))
+    assert np.abs(xy_nominal).max() > 0.1
+
+
+def test_relative_error_takes_a_result_for_its_calibrated_model(fitted):
+    held = [o for o in fitted.observations if o.configuration in set(fitted.holdout)]
+    args = (synthetic.CAMERA, synthetic.MOUNT)
+    assert relative_error_um(held, fitted.result, *args) == relative_error_um(
+        held, fitted.result.kinematics(), *args
+    )
