@@ -39,6 +39,7 @@ from station.calibration._observations import (
 )
 from station.calibration._result import (
     CalibrationResult,
+    CameraModelModel,
     CrossValidation,
     DeficiencyModel,
     DHRowModel,
@@ -276,6 +277,8 @@ def identify(
         calibrated_dh=[DHRowModel.of(row) for row in model.dh(delta)],
         nominal_tool=setup.nominal_tool.tolist(),
         calibrated_tool=model.tool(delta).tolist(),
+        camera=CameraModelModel.of(setup.camera),
+        sensor_mount=setup.sensor_mount.tolist(),
         parameters=params,
         identified_count=len(free),
         condition_number=report.condition_number,

@@ -11,7 +11,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from station._pydantic import problems
-from station.calibration._observations import CalibrationError
+from station.calibration._observations import CalibrationError, CameraModel
 from station.kinematics import DHRow, Kinematics
 
 SCHEMA_VERSION = 1
@@ -43,6 +43,31 @@ class DHRowModel(_Model):
 
     def row(self) -> DHRow:
         return DHRow(self.alpha_deg, self.a_mm, self.d_mm, self.theta_offset_deg, self.beta_deg)
+
+
+class CameraModelModel(_Model):
+    """The camera's intrinsics the fit used (px, mm)."""
+
+    focal_px: float
+    principal_px: tuple[float, float]
+    width: int
+    height: int
+    working_distance_mm: float
+
+    @classmethod
+    def of(cls, camera: CameraModel) -> CameraModelModel:
+        return cls(
+            focal_px=camera.focal_px,
+            principal_px=camera.principal_px,
+            width=camera.width,
+            height=camera.height,
+            working_distance_mm=camera.working_distance_mm,
+        )
+
+    def camera(self) -> CameraModel:
+        return CameraModel(
+            self.focal_px, self.principal_px, self.width, self.height, self.working_distance_mm
+        )
 
 
 class ParameterEstimate(_Model):
@@ -129,6 +154,8 @@ class CalibrationResult(_Model):
     calibrated_dh: list[DHRowModel]
     nominal_tool: list[list[float]] = Field(description="4x4 camera frame in the flange frame, nominal")
     calibrated_tool: list[list[float]] = Field(description="4x4 camera frame in the flange frame, calibrated")
+    camera: CameraModelModel
+    sensor_mount: list[list[float]] = Field(description="4x4 sensor frame in the camera frame; beam along +z")
     parameters: list[ParameterEstimate]
     identified_count: int
     condition_number: float

@@ -9,6 +9,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 import station
+from sim import calibration_sessions as synthetic
 from station.calibration import SCHEMA_VERSION, CalibrationError, CalibrationResult
 from station.kinematics import Kinematics
 
@@ -26,6 +27,8 @@ def test_json_round_trip_keeps_every_field(fitted, tmp_path):
     )
     assert len(data["calibrated_dh"]) == 6
     assert "beta_deg" in data["calibrated_dh"][2]
+    assert loaded.camera.camera() == synthetic.CAMERA
+    assert np.array_equal(np.asarray(loaded.sensor_mount), synthetic.MOUNT)
 
 
 def test_from_calibration_gives_the_calibrated_arm_with_the_camera_as_tool(fitted, tmp_path):
