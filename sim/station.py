@@ -8,6 +8,7 @@ micrometers. Start it at the world's reference pose, where the camera looks down
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -135,6 +136,17 @@ def taught_artifacts_mm(world: World) -> list[tuple[float, float, float]]:
     return out
 
 
+def taught_turns_deg(world: World) -> list[float]:
+    """Each artifact's yaw as a person would teach it: the camera turn (about its axis, from looking
+    straight down with the image's x along the base's -x) at which the cross appears square."""
+    look_down = np.diag([-1.0, 1.0, -1.0])
+    out = []
+    for T in world.artifact_poses():
+        u = look_down.T @ T[:3, 0]
+        out.append(round(math.degrees(math.atan2(float(u[1]), float(u[0]))), 1))
+    return out
+
+
 def build_sim_station(
     *,
     spec: WorldSpec | None = None,
@@ -191,6 +203,7 @@ def build_sim_station(
             distance_sensor=sensor_config,
             calibration=CalibrationConfig(
                 artifacts_mm=taught_artifacts_mm(sim.world),
+                artifact_turns_deg=taught_turns_deg(sim.world),
                 working_distance_mm=sim.world.spec.camera.working_distance_mm,
                 pixel_mm=1.0 / sim.world.spec.camera.px_per_mm,
             ),

@@ -83,7 +83,7 @@ class WorldSpec:
     flange_errors: FlangeErrors = field(default_factory=FlangeErrors)
     bench_artifacts: tuple[tuple[float, float, float, float], ...] = (
         (350.0, 250.0, 380.0, 30.0),
-        (520.0, -200.0, 335.0, -20.0),
+        (420.0, -200.0, 340.0, -20.0),
         (0.0, -400.0, 400.0, 60.0),
         (-100.0, 380.0, 420.0, -45.0),
     )

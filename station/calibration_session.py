@@ -71,6 +71,7 @@ def calibration_cell_from_config(
     return CalibrationCell(
         kinematics=Kinematics(tool=transform(np.eye(3), offset)),
         artifacts_mm=tuple((float(x), float(y), float(z)) for x, y, z in cal.artifacts_mm),
+        artifact_turns_deg=tuple(cal.artifact_turns_deg or [0.0] * len(cal.artifacts_mm)),
         working_distance_mm=cal.working_distance_mm,
         focal_px=focal,
         principal_px=principal,
@@ -122,10 +123,11 @@ def observations_from(
         if why is not None:
             left.append({"capture_id": c.capture_id, "kind": c.meta.get("kind"), "reason": why})
             continue
-        assert m is not None and c.z_mm is not None
+        assert m is not None
+        assert c.z_mm is not None
         out.append(
             Observation(
-                joints_deg=tuple(c.meta["joints_deg"]),  # type: ignore[arg-type]
+                joints_deg=tuple(c.meta["joints_deg"]),
                 center_px=(float(m["center_px"][0]), float(m["center_px"][1])),
                 z_mm=float(c.z_mm),
                 configuration=int(c.meta["configuration"]),

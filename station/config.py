@@ -19,7 +19,7 @@ from typing import Any, Literal
 
 import numpy as np
 import numpy.typing as npt
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from station._pydantic import problems as describe
 from station.devices import Camera, DistanceSensor, Robot, XYTable
@@ -186,17 +186,23 @@ class CalibrationConfig(BaseModel):
 
         [calibration]
         artifacts_mm = [[482, 0, 329], [350, 250, 380]]   # taught crossing positions, base frame
+        artifact_turns_deg = [0, 30]                        # the camera turn that sees each cross square
         working_distance_mm = 68
         pixel_mm = 0.01                                     # object-side pixel at the working distance
 
     ``artifacts_mm``: where each artifact's crossing is (base frame, mm) as taught with the nominal
     kinematics (jog until the crossing is centred and in focus, read WORLD, add the working distance
     along the optical axis); within about 2 mm is enough: the plan re-centres by measurement.
+    ``artifact_turns_deg``: for each, the turn of the camera about its axis (from looking straight down
+    with the image's x along the base's -x) at which the cross appears square in the image (its yaw, as
+    taught; default 0): the plan's turns are relative to it, so precise mode sees the cross within its
+    +/-40 deg and the kinematic model says which groove is which.
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     artifacts_mm: list[tuple[float, float, float]] = Field(min_length=1)
+    artifact_turns_deg: list[float] | None = None
     working_distance_mm: float = Field(gt=0, le=1000)
     pixel_mm: float = Field(gt=0, le=1.0, description="object-side pixel size at the working distance")
 
@@ -206,6 +212,18 @@ class CalibrationConfig(BaseModel):
         if not all(math.isfinite(c) for p in v for c in p):
             raise ValueError(f"artifacts_mm must be finite positions, got {v}")
         return v
+
+    @model_validator(mode="after")
+    def _turns_match(self) -> CalibrationConfig:
+        turns = self.artifact_turns_deg
+        if turns is not None:
+            if len(turns) != len(self.artifacts_mm):
+                raise ValueError(
+                    f"artifact_turns_deg has {len(turns)} values for {len(self.artifacts_mm)} artifacts_mm"
+                )
+            if not all(math.isfinite(t) for t in turns):
+                raise ValueError(f"artifact_turns_deg must be finite, got {turns}")
+        return self
 
 
 class StationConfig(BaseModel):

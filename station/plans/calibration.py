@@ -54,6 +54,9 @@ from station.plans import (
 
 FloatArray = npt.NDArray[np.float64]
 
+LIMIT_MARGIN_DEG = 2.5
+"""How far inside its limits every joint of a planned pose stays: room for the measured corrections."""
+
 MAX_CORRECTION_MM = 1.9
 """The longest single focus/re-centring move (within the runner's 2 mm bound); longer ones go in parts."""
 
@@ -69,6 +72,7 @@ class CalibrationCell:
 
     kinematics: Kinematics
     artifacts_mm: tuple[tuple[float, float, float], ...]
+    artifact_turns_deg: tuple[float, ...] | None
     working_distance_mm: float
     focal_px: float
     principal_px: tuple[float, float] | None = None
@@ -104,7 +108,8 @@ class CalibrationParams(BaseModel):
     )
     turns_deg: list[float] = Field(
         default_factory=lambda: [-20.0, 20.0, 70.0, 110.0, 160.0, 200.0, 250.0, 290.0],
-        description="camera turns about the optical axis (deg), each within 30 deg of a multiple of 90",
+        description="camera turns about the optical axis from where the cross looks square (deg), each"
+        " within 30 deg of a multiple of 90",
     )
     solutions: int = Field(4, ge=1, le=8, description="joint solutions per camera pose (wrist, shoulder)")
     inview_mm: float = Field(1.2, ge=0.0, le=2.0, description="in-view camera shift along x and y (mm)")
@@ -143,6 +148,21 @@ class Configuration:
     solution: int
     joints_deg: tuple[float, ...]
     camera_pose: FloatArray
+
+
+def unwrap_near(q: npt.ArrayLike, seed: npt.ArrayLike, limits: FloatArray) -> tuple[float, ...]:
+    """``q`` with each joint moved by whole turns to the equivalent angle nearest ``seed`` that stays within
+    its limits (inverse kinematics wraps angles to (-180, 180]: joint 6 at +180 and -180 is one pose)."""
+    out = []
+    qs, ss = np.asarray(q, dtype=float), np.asarray(seed, dtype=float)
+    for a, s, (lo, hi) in zip(qs, ss, limits, strict=True):
+        best = float(a)
+        for k in (-1, 1):
+            alt = float(a) + 360.0 * k
+            if lo <= alt <= hi and abs(alt - s) < abs(best - s):
+                best = alt
+        out.append(best)
+    return tuple(out)
 
 
 def split_move(start: Sequence[float], end: Sequence[float], max_step_deg: float) -> list[tuple[float, ...]]:
@@ -189,14 +209,18 @@ class CalibrationPlan:
         out: list[Configuration] = []
         for p in placements:
             x, y, z = cell.artifacts_mm[p]
+            square = cell.artifact_turns_deg[p] if cell.artifact_turns_deg else 0.0
             here: list[tuple[int, float, tuple[float, ...], FloatArray]] = []
             for turn in params.turns_deg:
-                R = LOOK_DOWN @ rot_z(math.radians(turn))
+                R = LOOK_DOWN @ rot_z(math.radians(square + turn))
                 pose = transform(R, (x, y, z + cell.working_distance_mm))
                 try:
                     sols = kin.inverse_all(pose)
                 except KinematicsError:
                     sols = []
+                # room for the measured corrections (2 deg): a wrist flip of the A465 with the camera
+                # square to the artifact puts joint 4 on its +/-180 deg limit
+                sols = [q for q in sols if kin.within_limits(q, margin_deg=LIMIT_MARGIN_DEG)]
                 # solutions numbered by branch (shoulder, elbow, wrist), whatever the turn: the signs of
                 # joints 2/3 and whether joint 5 is negative; the upright-arm ones first
                 sols.sort(key=lambda s: (abs(s[1]) + abs(s[2]), s[4] < 0, abs(s[3])))
@@ -234,9 +258,10 @@ class CalibrationPlan:
                 q = kin.inverse(c.camera_pose @ M, seed_deg=q0)
             except KinematicsError:
                 continue
-            off = q - q0
-            if np.max(np.abs(off)) > 15.0:  # another branch: not a small motion
-                continue
+            near = np.asarray(unwrap_near(q, q0, kin.joint_limits_deg))
+            off = near - q0
+            if np.max(np.abs(off)) > 15.0 or not kin.within_limits(near, margin_deg=LIMIT_MARGIN_DEG):
+                continue  # another branch (not a small motion), or too near a joint limit
             out.append((name, tuple(float(v) for v in off)))
         return out
 
@@ -329,7 +354,8 @@ class CalibrationPlan:
                 q = kin.inverse(here @ transform(np.eye(3), step), seed_deg=seen.joints_deg)
             except KinematicsError as exc:
                 raise AlignSkippedError(f"the correction cannot be reached: {exc}") from exc
-            return Correction(tuple(float(a) for a in q), float(np.linalg.norm(step)))
+            near = unwrap_near(q, seen.joints_deg, kin.joint_limits_deg)
+            return Correction(near, float(np.linalg.norm(step)))
 
         return correct
 
