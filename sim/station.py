@@ -31,6 +31,7 @@ from station.config import (
 )
 from station.devices import DistanceSensor, Robot, XYTable
 from station.kinematics import Kinematics, transform
+from station.plans.calibration import LOOK_DOWN, square_on
 from station.prompts import PromptBroker
 
 #: The simulated Z sensor's mount in the camera frame: 30 mm beside the optical axis, beam parallel to
@@ -120,29 +121,34 @@ def sim_safety(world: World) -> dict[str, Any]:
 
 
 def taught_artifacts_mm(world: World) -> list[tuple[float, float, float]]:
-    """Each artifact's crossing as a person would teach it: the arm jogged until the true camera sees the
-    crossing centred at the working distance, the position then read through the nominal kinematics
-    (what WORLD reports) plus the working distance along the optical axis. Off the truth by the arm's
-    kinematic errors (a millimetre or so), which is what the calibration plan's re-centring absorbs."""
+    """Each artifact's crossing as a person would teach it: the arm jogged until the true camera, square to
+    the artifact, sees the crossing centred at the working distance, the position then read through the
+    nominal kinematics (what WORLD reports) plus the working distance along the optical axis. Off the
+    truth by the arm's kinematic errors (a millimetre or so), which the calibration plan's re-centring
+    absorbs."""
     wd = world.spec.camera.working_distance_mm
     nominal = Kinematics(tool=world.kinematics.tool)
-    look_down = np.diag([-1.0, 1.0, -1.0])
     out = []
-    for T in world.artifact_poses():
-        camera = transform(look_down, T[:3, 3] + np.array([0.0, 0.0, wd]))
+    for T, up in zip(world.artifact_poses(), taught_normals(world), strict=True):
+        camera = transform(square_on(up) @ LOOK_DOWN, T[:3, 3] + wd * np.asarray(up))
         q = world.kinematics.inverse(camera, seed_deg=world.spec.reference_joints_deg)
         taught = nominal.forward(q) @ np.array([0.0, 0.0, wd, 1.0])
         out.append((round(float(taught[0]), 1), round(float(taught[1]), 1), round(float(taught[2]), 1)))
     return out
 
 
+def taught_normals(world: World) -> list[tuple[float, float, float]]:
+    """Each artifact's upward normal as measured on the bench (an inclinometer: to 0.001)."""
+    return [tuple(round(-float(v), 3) for v in T[:3, 2]) for T in world.artifact_poses()]  # type: ignore[misc]
+
+
 def taught_turns_deg(world: World) -> list[float]:
-    """Each artifact's yaw as a person would teach it: the camera turn (about its axis, from looking
-    straight down with the image's x along the base's -x) at which the cross appears square."""
-    look_down = np.diag([-1.0, 1.0, -1.0])
+    """Each artifact's yaw as a person would teach it: the camera turn (about its axis, from square on
+    with the image's x along the base's -x, see ``station.plans.calibration``) at which the cross
+    appears square."""
     out = []
-    for T in world.artifact_poses():
-        u = look_down.T @ T[:3, 0]
+    for T, up in zip(world.artifact_poses(), taught_normals(world), strict=True):
+        u = (square_on(up) @ LOOK_DOWN).T @ T[:3, 0]
         out.append(round(math.degrees(math.atan2(float(u[1]), float(u[0]))), 1))
     return out
 
@@ -204,6 +210,7 @@ def build_sim_station(
             calibration=CalibrationConfig(
                 artifacts_mm=taught_artifacts_mm(sim.world),
                 artifact_turns_deg=taught_turns_deg(sim.world),
+                artifact_normals=taught_normals(sim.world),
                 working_distance_mm=sim.world.spec.camera.working_distance_mm,
                 pixel_mm=1.0 / sim.world.spec.camera.px_per_mm,
             ),

@@ -45,7 +45,7 @@ from sim.arm_errors import FlangeErrors, FlangeErrorSequence
 from sim.artifact import ArtifactSpec, CameraSpec, Pose, Truth, homography_for, render
 from sim.kinematic_errors import perturbed_dh
 from sim.presets import NoisePreset, get_preset
-from station.kinematics import DHRow, Kinematics, rot_z, transform
+from station.kinematics import DHRow, Kinematics, rot_x, rot_z, transform
 
 FloatArray = npt.NDArray[np.float64]
 INCH_MM = 25.4
@@ -81,17 +81,18 @@ class WorldSpec:
     table: TableImperfections = field(default_factory=TableImperfections)
     defocus_px_per_mm: float = 20.0
     flange_errors: FlangeErrors = field(default_factory=FlangeErrors)
-    bench_artifacts: tuple[tuple[float, float, float, float], ...] = (
-        (350.0, 250.0, 380.0, 30.0),
-        (420.0, -200.0, 340.0, -20.0),
-        (0.0, -400.0, 400.0, 60.0),
-        (-100.0, 380.0, 420.0, -45.0),
+    bench_artifacts: tuple[tuple[float, float, float, float, float], ...] = (
+        (350.0, 250.0, 380.0, 30.0, 20.0),
+        (420.0, -200.0, 340.0, -20.0, -20.0),
+        (0.0, -400.0, 400.0, 60.0, -25.0),
+        (-100.0, 380.0, 420.0, -45.0, 20.0),
     )
-    """Further artifacts fixed on the bench (not on the table), for calibration: each ``(x, y, z, yaw_deg)``
-    in the base frame (crossing position, mm; turn of its u axis about base z from the base's x, deg),
-    level like the table's, on blocks above the table's plane (the arm's keep-out). The camera sees the
-    artifact nearest its optical axis. The defaults spread four around the arm, reachable with the
-    camera looking down by two to four joint solutions each."""
+    """Further artifacts fixed on the bench (not on the table), for calibration: each ``(x, y, z, yaw_deg,
+    tilt_deg)`` in the base frame: the crossing's position (mm), the turn of its u axis about base z from
+    the base's x, and a tilt of the plate about its u axis (an angle block), on blocks above the table's
+    plane (the arm's keep-out). The camera sees the artifact nearest its optical axis. The defaults
+    spread four around the arm, tilted so that the camera square to them needs the wrist bent sideways
+    (joint 4 away from 0 and 180 deg): four joint solutions each within the limits."""
     true_dh: tuple[DHRow, ...] | None = None
     """The arm's true DH table; None: the nominal table plus errors drawn with ``dh_error_seed``."""
     dh_error_seed: int = 0
@@ -218,8 +219,8 @@ class World:
         self._table_axes = np.column_stack([x_axis, y_axis])  # base frame, 3x2
         flat = np.diag([1.0, -1.0, -1.0])  # u along base x, normal down (u x v = n)
         self._bench = [
-            transform(rot_z(math.radians(yaw)) @ flat, (x, y, z))
-            for x, y, z, yaw in self.spec.bench_artifacts
+            transform(rot_z(math.radians(yaw)) @ rot_x(math.radians(tilt)) @ flat, (x, y, z))
+            for x, y, z, yaw, tilt in self.spec.bench_artifacts
         ]
 
     # ------------------------------------------------------------------ arm and camera

@@ -72,6 +72,9 @@ def calibration_cell_from_config(
         kinematics=Kinematics(tool=transform(np.eye(3), offset)),
         artifacts_mm=tuple((float(x), float(y), float(z)) for x, y, z in cal.artifacts_mm),
         artifact_turns_deg=tuple(cal.artifact_turns_deg or [0.0] * len(cal.artifacts_mm)),
+        artifact_normals=None
+        if cal.artifact_normals is None
+        else tuple((float(a), float(b), float(c)) for a, b, c in cal.artifact_normals),
         working_distance_mm=cal.working_distance_mm,
         focal_px=focal,
         principal_px=principal,
@@ -97,6 +100,7 @@ def calibration_setup(cell: CalibrationCell, width: int, height: int) -> Calibra
         sensor_mount=cell.sensor_mount,
         nominal_tool=cell.kinematics.tool,
         artifacts=dict(enumerate(cell.artifacts_mm)),
+        artifact_normals=dict(enumerate(cell.artifact_normals)) if cell.artifact_normals else {},
     )
 
 

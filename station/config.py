@@ -187,6 +187,7 @@ class CalibrationConfig(BaseModel):
         [calibration]
         artifacts_mm = [[482, 0, 329], [350, 250, 380]]   # taught crossing positions, base frame
         artifact_turns_deg = [0, 30]                        # the camera turn that sees each cross square
+        artifact_normals = [[0, 0, 1], [0, 0.34, 0.94]]     # each top plane's upward normal (default level)
         working_distance_mm = 68
         pixel_mm = 0.01                                     # object-side pixel at the working distance
 
@@ -196,13 +197,17 @@ class CalibrationConfig(BaseModel):
     ``artifact_turns_deg``: for each, the turn of the camera about its axis (from looking straight down
     with the image's x along the base's -x) at which the cross appears square in the image (its yaw, as
     taught; default 0): the plan's turns are relative to it, so precise mode sees the cross within its
-    +/-40 deg and the kinematic model says which groove is which.
+    +/-40 deg and the kinematic model says which groove is which. ``artifact_normals``: each artifact's
+    upward normal in the base frame (default level); an artifact on an angle block makes the camera,
+    square to it, bend the wrist sideways, which the calibration needs to tell the wrist's links apart.
+    The turn is then measured in the frame that the smallest rotation from level to that normal gives.
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     artifacts_mm: list[tuple[float, float, float]] = Field(min_length=1)
     artifact_turns_deg: list[float] | None = None
+    artifact_normals: list[tuple[float, float, float]] | None = None
     working_distance_mm: float = Field(gt=0, le=1000)
     pixel_mm: float = Field(gt=0, le=1.0, description="object-side pixel size at the working distance")
 
@@ -223,6 +228,18 @@ class CalibrationConfig(BaseModel):
                 )
             if not all(math.isfinite(t) for t in turns):
                 raise ValueError(f"artifact_turns_deg must be finite, got {turns}")
+        normals = self.artifact_normals
+        if normals is not None:
+            if len(normals) != len(self.artifacts_mm):
+                raise ValueError(
+                    f"artifact_normals has {len(normals)} vectors for {len(self.artifacts_mm)} artifacts_mm"
+                )
+            for n in normals:
+                norm = math.sqrt(sum(c * c for c in n))
+                if not math.isfinite(norm) or norm < 1e-9 or n[2] / norm < 0.5:
+                    raise ValueError(
+                        f"artifact_normals must be upward vectors within 60 deg of the base's +z, got {n}"
+                    )
         return self
 
 

@@ -54,6 +54,9 @@ from station.plans import (
 
 FloatArray = npt.NDArray[np.float64]
 
+JOINT_DECIMALS = 3
+"""The C500C's joint resolution in its commands and position reports (0.001 deg)."""
+
 LIMIT_MARGIN_DEG = 2.5
 """How far inside its limits every joint of a planned pose stays: room for the measured corrections."""
 
@@ -73,6 +76,7 @@ class CalibrationCell:
     kinematics: Kinematics
     artifacts_mm: tuple[tuple[float, float, float], ...]
     artifact_turns_deg: tuple[float, ...] | None
+    artifact_normals: tuple[tuple[float, float, float], ...] | None
     working_distance_mm: float
     focal_px: float
     principal_px: tuple[float, float] | None = None
@@ -113,7 +117,7 @@ class CalibrationParams(BaseModel):
     )
     solutions: int = Field(4, ge=1, le=8, description="joint solutions per camera pose (wrist, shoulder)")
     inview_mm: float = Field(1.2, ge=0.0, le=2.0, description="in-view camera shift along x and y (mm)")
-    inview_turn_deg: float = Field(10.0, ge=0.0, le=30.0, description="in-view turn about the axis (deg)")
+    inview_turn_deg: float = Field(0.0, ge=0.0, le=30.0, description="in-view turn about the axis (deg)")
     focus_tolerance_mm: float = Field(0.05, gt=0, le=0.5, description="|distance - working distance| (mm)")
     centre_tolerance_mm: float = Field(0.05, gt=0, le=1.0, description="crossing to image centre (mm)")
     speed_pct: int = Field(50, ge=1, le=100)
@@ -150,6 +154,26 @@ class Configuration:
     camera_pose: FloatArray
 
 
+def quantised(q: npt.ArrayLike) -> tuple[float, ...]:
+    """Joint angles rounded to the controller's resolution (0.001 deg): what it can be commanded to, so
+    that a sequence of relative moves lands exactly on the target."""
+    return tuple(round(float(a), JOINT_DECIMALS) for a in np.asarray(q, dtype=float))
+
+
+def square_on(normal: npt.ArrayLike) -> FloatArray:
+    """The smallest rotation taking the base's +z to ``normal`` (an artifact's upward normal): the camera
+    square to that artifact looks along ``-normal`` with ``square_on(normal) @ LOOK_DOWN``."""
+    n = np.asarray(normal, dtype=float)
+    n = n / np.linalg.norm(n)
+    z = np.array([0.0, 0.0, 1.0])
+    v = np.cross(z, n)
+    s, c = float(np.linalg.norm(v)), float(z @ n)
+    if s < 1e-12:
+        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
+    K = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    return np.asarray(np.eye(3) + K + K @ K * ((1.0 - c) / (s * s)), dtype=float)
+
+
 def unwrap_near(q: npt.ArrayLike, seed: npt.ArrayLike, limits: FloatArray) -> tuple[float, ...]:
     """``q`` with each joint moved by whole turns to the equivalent angle nearest ``seed`` that stays within
     its limits (inverse kinematics wraps angles to (-180, 180]: joint 6 at +180 and -180 is one pose)."""
@@ -170,7 +194,7 @@ def split_move(start: Sequence[float], end: Sequence[float], max_step_deg: float
     between two of them."""
     a, b = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
     n = max(1, math.ceil(float(np.max(np.abs(b - a))) / max_step_deg - 1e-9))
-    return [tuple(float(v) for v in a + (b - a) * (k / n)) for k in range(1, n + 1)]
+    return [quantised(a + (b - a) * (k / n)) for k in range(1, n + 1)]
 
 
 def lift_pose(q: Sequence[float]) -> tuple[float, ...]:
@@ -208,12 +232,16 @@ class CalibrationPlan:
         kin = cell.kinematics
         out: list[Configuration] = []
         for p in placements:
-            x, y, z = cell.artifacts_mm[p]
+            crossing = np.asarray(cell.artifacts_mm[p], dtype=float)
             square = cell.artifact_turns_deg[p] if cell.artifact_turns_deg else 0.0
+            up = np.asarray(
+                cell.artifact_normals[p] if cell.artifact_normals else (0.0, 0.0, 1.0), dtype=float
+            )
+            up /= np.linalg.norm(up)
             here: list[tuple[int, float, tuple[float, ...], FloatArray]] = []
             for turn in params.turns_deg:
-                R = LOOK_DOWN @ rot_z(math.radians(square + turn))
-                pose = transform(R, (x, y, z + cell.working_distance_mm))
+                R = square_on(up) @ LOOK_DOWN @ rot_z(math.radians(square + turn))
+                pose = transform(R, crossing + cell.working_distance_mm * up)
                 try:
                     sols = kin.inverse_all(pose)
                 except KinematicsError:
@@ -235,7 +263,7 @@ class CalibrationPlan:
             # only when it changes branch or placement
             here.sort(key=lambda h: (h[0], params.turns_deg.index(h[1])))
             for k, turn, joints, camera in here:
-                out.append(Configuration(len(out), p, turn, k, joints, camera))
+                out.append(Configuration(len(out), p, turn, k, quantised(joints), camera))
         return out
 
     def _inview_offsets(
@@ -262,7 +290,7 @@ class CalibrationPlan:
             off = near - q0
             if np.max(np.abs(off)) > 15.0 or not kin.within_limits(near, margin_deg=LIMIT_MARGIN_DEG):
                 continue  # another branch (not a small motion), or too near a joint limit
-            out.append((name, tuple(float(v) for v in off)))
+            out.append((name, quantised(off)))
         return out
 
     # ---------------------------------------------------------------- steps
@@ -355,7 +383,7 @@ class CalibrationPlan:
             except KinematicsError as exc:
                 raise AlignSkippedError(f"the correction cannot be reached: {exc}") from exc
             near = unwrap_near(q, seen.joints_deg, kin.joint_limits_deg)
-            return Correction(near, float(np.linalg.norm(step)))
+            return Correction(quantised(near), float(np.linalg.norm(step)))
 
         return correct
 
