@@ -515,32 +515,7 @@ class SessionRunner:
     def _capture_results(self, sid: str) -> list[CaptureResult]:
         source_of = getattr(self.plan, "source_session", None)
         source = self.record.get_session(source_of(self.params)).id if source_of is not None else sid
-        measurements = {m.capture_id: m for m in self.record.measurements(sid)}
-        done = {s.index for s in self.record.steps(source) if s.state == "done"}
-        caps = [c for c in self.record.captures(source) if c.step_index in done]
-        # a step run again after an interruption keeps its earlier attempt's frames (nothing captured is
-        # lost); the analysis takes the attempt that completed: the latest
-        latest: dict[int, int] = {}
-        for c in caps:
-            latest[c.step_index] = max(latest.get(c.step_index, 0), c.frame_index // FRAMES_PER_ATTEMPT)
-        out = []
-        for cap in caps:
-            if cap.frame_index // FRAMES_PER_ATTEMPT != latest[cap.step_index]:
-                continue
-            m = measurements.get(cap.id)
-            out.append(
-                CaptureResult(
-                    cap.id,
-                    cap.step_index,
-                    cap.frame_index,
-                    cap.meta,
-                    m.result if m else None,
-                    cap.width,
-                    cap.height,
-                    cap.z_mm,
-                )
-            )
-        return out
+        return stored_captures(self.record, source, measured_in=sid)
 
     # ------------------------------------------------------------------ steps
 
@@ -1040,6 +1015,37 @@ def require(device: Any, name: str) -> Any:
     if device is None:
         raise SessionError(f"this step needs the {name}, which the station configuration does not have")
     return device
+
+
+def stored_captures(record: Record, source: str, *, measured_in: str | None = None) -> list[CaptureResult]:
+    """The captures of session ``source``'s completed steps with the measurements session ``measured_in``
+    recorded of them (the source's own by default): what a plan's analysis gets."""
+    measurements = {m.capture_id: m for m in record.measurements(measured_in or source)}
+    done = {s.index for s in record.steps(source) if s.state == "done"}
+    caps = [c for c in record.captures(source) if c.step_index in done]
+    # a step run again after an interruption keeps its earlier attempt's frames (nothing captured is
+    # lost); the analysis takes the attempt that completed: the latest
+    latest: dict[int, int] = {}
+    for c in caps:
+        latest[c.step_index] = max(latest.get(c.step_index, 0), c.frame_index // FRAMES_PER_ATTEMPT)
+    out = []
+    for cap in caps:
+        if cap.frame_index // FRAMES_PER_ATTEMPT != latest[cap.step_index]:
+            continue
+        m = measurements.get(cap.id)
+        out.append(
+            CaptureResult(
+                cap.id,
+                cap.step_index,
+                cap.frame_index,
+                cap.meta,
+                m.result if m else None,
+                cap.width,
+                cap.height,
+                cap.z_mm,
+            )
+        )
+    return out
 
 
 def step_moves(step: Step) -> bool:

@@ -14,7 +14,7 @@ Register = Callable[[SubParsers], None]
 
 
 def _core() -> list[Register]:
-    from station.commands import camera, measure, run, sessions, sweep, table, validate
+    from station.commands import calibrate, camera, measure, run, sessions, sweep, table, validate
 
     return [
         measure.register,
@@ -24,6 +24,7 @@ def _core() -> list[Register]:
         table.register,
         run.register,
         sessions.register,
+        calibrate.register,
     ]
 
 

@@ -38,7 +38,7 @@ def add_record_options(p: argparse.ArgumentParser) -> None:
 def register(sub: SubParsers) -> None:
     p = sub.add_parser(
         "run",
-        help="run a session: validation, repeatability, sweep or reanalyse",
+        help="run a session: validation, repeatability, calibration, sweep or reanalyse",
         description="Run one session on the simulated station (--sim) or a configured one (--config), "
         "record everything, and print its results. sweep and reanalyse need no station.",
     )
@@ -228,4 +228,18 @@ def summary(kind: str, results: dict[str, Any]) -> str:
         return "\n".join(lines)
     if kind == "sweep":
         return f"  {len(results['trials'])} trials; best: trial {results['best']}"
+    if kind == "calibration":
+        rel = results["relative_error_um"]
+
+        def um(v: Any) -> str:
+            return "-" if v is None else f"{v:.1f} um"
+
+        return (
+            f"  relative error (held-out configurations): before {um(rel.get('before'))},"
+            f" after {um(rel.get('after'))}, floor {um(rel.get('floor'))}\n"
+            f"  {results['identified_count']} parameters identified from {results['observations']} captures"
+            f" of {results['configurations']} configurations;"
+            f" condition number {results['condition_number']:.3g};"
+            f" not identifiable on this arm: {', '.join(results['unidentifiable'])}"
+        )
     return json.dumps(results)[:500]

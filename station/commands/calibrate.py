@@ -1,0 +1,110 @@
+"""``station calibrate SESSION``: identify the arm's kinematic errors again from a stored calibration session.
+
+Capture and optimisation are separate (the raw images, their measurements, the joints and the distance
+readings stay in the record), so the identification re-runs on any stored ``calibration`` session, e.g.
+with another hold-out draw (``--param seed=3``) or after a software update. It reads the session's
+captures, its configuration snapshot (the cell: artifacts, optics, the sensor's mount) and its plan
+parameters, and prints the same results object as ``station run calibration``; ``--json`` prints
+``{"id", "kind", "state", "results"}`` as ``station run --json`` does. ``--out FILE`` writes the
+calibrated parameter set (versioned JSON) that ``Kinematics.from_calibration(FILE)`` and
+``station robot --calibration FILE`` load. Nothing is moved, nothing in the record is changed.
+Exit 0 on success, 1 when the identification fails, 2 for usage errors (unknown session, wrong kind).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from station.commands import SubParsers
+from station.commands.run import add_record_options, parse_params, summary
+from station.plans import PlanError
+
+
+def register(sub: SubParsers) -> None:
+    p = sub.add_parser(
+        "calibrate",
+        help="identify the arm's kinematic errors from a stored calibration session",
+        description="Identify the arm's kinematic errors again from a stored calibration session (no"
+        " motion); print the results and optionally write the calibrated parameter set.",
+    )
+    p.add_argument("session", metavar="SESSION", help="a calibration session's id (or a unique prefix)")
+    p.add_argument(
+        "--param",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="override a plan parameter of the analysis (holdout_fraction, seed)",
+    )
+    p.add_argument("--out", metavar="FILE", help="write the calibrated parameter set (JSON) here")
+    p.add_argument("--json", action="store_true", help="print the outcome as one JSON object (last line)")
+    add_record_options(p)
+    p.set_defaults(func=lambda args: run_calibrate(p, args))
+
+
+ANALYSIS_PARAMS = ("holdout_fraction", "seed")
+
+
+def run_calibrate(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
+    from station.calibration import CalibrationResult
+    from station.calibration_session import analyse_calibration, calibration_cell_from_config
+    from station.plans import parse_params as validate_params
+    from station.plans.calibration import CALIBRATION
+    from station.record import RecordError
+    from station.runner import stored_captures
+    from station.session import open_record
+    from station.vision import MeasureParams
+
+    overrides = parse_params(parser, args.param)
+    unknown = sorted(set(overrides) - set(ANALYSIS_PARAMS))
+    if unknown:
+        print(
+            f"station calibrate: only the analysis's parameters can change ({', '.join(ANALYSIS_PARAMS)});"
+            f" not {', '.join(unknown)}: the captures were planned with the others",
+            file=sys.stderr,
+        )
+        return 2
+    try:
+        record = open_record(args.data, args.database)
+    except RecordError as exc:
+        print(f"station calibrate: {exc}", file=sys.stderr)
+        return 2
+    with record:
+        try:
+            session = record.get_session(args.session)
+        except RecordError as exc:
+            print(f"station calibrate: {exc}", file=sys.stderr)
+            return 2
+        if session.kind != CALIBRATION.name:
+            print(
+                f"station calibrate: session {session.id} is a {session.kind} session, not a calibration",
+                file=sys.stderr,
+            )
+            return 2
+        try:
+            params: Any = validate_params(CALIBRATION, {**session.params.get("plan", {}), **overrides})
+            measure = MeasureParams.model_validate(session.params.get("measure") or {})
+            cell = calibration_cell_from_config(session.config, measure)
+            if cell is None:
+                raise PlanError(
+                    f"session {session.id}'s configuration snapshot has no [calibration] section, robot or"
+                    " distance sensor: it cannot be identified"
+                )
+            results = analyse_calibration(params, cell, stored_captures(record, session.id))
+        except PlanError as exc:
+            print(f"station calibrate: {exc}", file=sys.stderr)
+            return 1
+    if args.out:
+        path = CalibrationResult.model_validate(results["calibration"]).save(Path(args.out))
+        print(f"calibration: {path}", file=sys.stderr if args.json else sys.stdout)
+    if args.json:
+        print(
+            json.dumps({"id": session.id, "kind": session.kind, "state": session.state, "results": results})
+        )
+    else:
+        print(f"session {session.id} ({session.kind}), identified again:")
+        print(summary(session.kind, results))
+    return 0
