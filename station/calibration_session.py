@@ -25,6 +25,7 @@ from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from station.calibration import (
     CalibrationError,
@@ -38,6 +39,7 @@ from station.kinematics import Kinematics, transform
 from station.plans import CaptureResult, PlanError
 
 if TYPE_CHECKING:
+    from station.devices import Robot
     from station.plans.calibration import CalibrationCell, CalibrationParams
     from station.vision import MeasureParams
 
@@ -251,5 +253,36 @@ __all__ = [
     "calibration_setup",
     "floor_estimate_um",
     "holdout_configurations",
+    "move_camera",
     "observations_from",
 ]
+
+
+def move_camera(
+    robot: Robot,
+    calibrated: Kinematics,
+    camera_pose: npt.ArrayLike,
+    *,
+    max_step_deg: float,
+) -> list[tuple[float, ...]]:
+    """A compensated move: the camera to ``camera_pose`` (4x4, the calibrated model's base frame, mm) by
+    inverse kinematics with the calibrated model, sent as joint moves within ``max_step_deg`` each.
+
+    The whole chain of waypoints is checked with ``check_move`` before the first is sent (a chain that
+    fails validation moves nothing). Returns the waypoints sent (deg, at the controller's resolution).
+    """
+    from station.calibration import compensated_steps
+    from station.plans.calibration import quantised
+
+    start = tuple(float(a) for a in robot.where().commanded_joints_deg)
+    steps = [
+        quantised(q)
+        for q in compensated_steps(calibrated, camera_pose, current_deg=start, max_step_deg=max_step_deg)
+    ]
+    previous = start
+    for q in steps:
+        robot.check_move(q, start_deg=previous)
+        previous = q
+    for q in steps:
+        robot.move_joints(q)
+    return steps

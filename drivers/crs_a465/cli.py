@@ -3,7 +3,9 @@
     station robot (--sim | --port PORT [--baud N]) [--json] COMMAND
 
 COMMAND: ``status``, ``where``, ``home``, ``ready``, ``speed PERCENT``, ``joint AXIS DEGREES``
-(relative), ``move-joints D1 D2 D3 D4 D5 D6`` (absolute). ``--sim`` starts a fresh controller twin
+(relative), ``move-joints D1 D2 D3 D4 D5 D6`` (absolute), ``move-camera X Y Z Z_ROT Y_ROT X_ROT
+--calibration FILE`` (a compensated move: the calibrated model's inverse kinematics, then joint
+moves). ``--sim`` starts a fresh controller twin
 for this call (through the device registry: drivers never import ``sim``). Motion commands return once
 the arm has arrived, then print the position. Exit 0 on success, 1 when the controller or the host's
 checks refuse (the message on stderr), 2 on a usage error or a bad option value (one line, nothing
@@ -115,12 +117,21 @@ def _run_command(robot: CrsA465, args: argparse.Namespace) -> None:
         "speed": lambda: robot.set_speed(args.percent),
         "joint": lambda: robot.move_joint(args.axis, args.degrees),
         "move-joints": lambda: robot.move_joints(args.degrees),
+        "move-camera": lambda: _move_camera(robot, args),
     }
     actions[name]()  # motions return once the arm has arrived
     if name == "speed":
         _print_status(robot.status(), args.json)
     else:
         _print_position(robot.where(), args.json)
+
+
+def _move_camera(robot: CrsA465, args: argparse.Namespace) -> None:
+    from station.calibration_session import move_camera
+    from station.kinematics import pose_from_world_row
+
+    pose = pose_from_world_row(args.pose)
+    move_camera(robot, args.calibrated, pose, max_step_deg=robot.guard.limits.max_step_deg * 0.9)
 
 
 _OPTION_OF_FIELD = {
@@ -161,7 +172,7 @@ def _check_positionals(args: argparse.Namespace) -> None:
         value = getattr(args, name, None)
         if value is None:
             continue
-        if args.robot_command == "move-joints" and name == "degrees":
+        if args.robot_command in ("move-joints", "move-camera") and name == "degrees":
             if not (isinstance(value, list) and all(isinstance(v, float) for v in value)):
                 raise _BadOptionError(f"{label}: expected six numbers, got {value!r}")
         elif isinstance(value, list | str):
@@ -171,6 +182,13 @@ def _check_positionals(args: argparse.Namespace) -> None:
 def _settings(args: argparse.Namespace) -> dict[str, Any]:
     """Every option value validated into the driver's settings before anything is opened."""
     _check_positionals(args)
+    if getattr(args, "calibration", None) is not None:
+        from station.kinematics import Kinematics
+
+        try:
+            args.calibrated = Kinematics.from_calibration(args.calibration)
+        except (OSError, ValueError) as exc:
+            raise _BadOptionError(f"--calibration {args.calibration}: {exc}") from None
     baud = _number("--baud", args.baud, int)
     link: dict[str, Any] = {}
     if baud is not None and not args.sim:
@@ -336,6 +354,15 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg,
     joint.add_argument("degrees", type=float, metavar="DEGREES")
     move = commands.add_parser("move-joints", help="move to six absolute joint angles")
     move.add_argument("degrees", type=float, nargs=JOINT_COUNT, metavar="D")
+    camera = commands.add_parser(
+        "move-camera",
+        help="compensated move: the camera to a pose under a calibrated model (station calibrate --out)",
+        description="Move the camera to X Y Z (mm) Z_ROT Y_ROT X_ROT (deg, as a WORLD row) in the calibrated"
+        " model's base frame: inverse kinematics with the calibrated model, then joint moves within the"
+        " largest joint step, every waypoint checked before the first is sent.",
+    )
+    camera.add_argument("pose", type=float, nargs=6, metavar="V")
+    camera.add_argument("--calibration", required=True, metavar="FILE", help="a calibrated parameter set")
     parser.set_defaults(func=handle)
 
 
