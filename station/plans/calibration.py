@@ -111,7 +111,7 @@ class CalibrationParams(BaseModel):
         None, description="indices of the cell's artifacts_mm to use (default: all of them)"
     )
     turns_deg: list[float] = Field(
-        default_factory=lambda: [-20.0, 20.0, 70.0, 110.0, 160.0, 200.0, 250.0, 290.0],
+        default_factory=lambda: [-20.0, 70.0, 160.0, 250.0],
         description="camera turns about the optical axis from where the cross looks square (deg), each"
         " within 30 deg of a multiple of 90",
     )
