@@ -12,17 +12,25 @@ The station never sees the true arm; here it is compared with what the station i
 
 from __future__ import annotations
 
+import math
+import time
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from sim.world import World, WorldSpec
 from station.calibration import CalibrationModel, CalibrationResult, equivalent_errors, relative_error_um
 from station.calibration import reported_name as calibration_name
 from station.calibration_session import calibration_setup, observations_from
+from station.config import StationDevices
+from station.kinematics import rot_x, rot_y, rot_z, transform
 from station.plans import CaptureResult
-from station.plans.calibration import CalibrationCell
+from station.plans.calibration import LOOK_DOWN, CalibrationCell, lift_pose
+from station.vision import MeasureParams
+
+FloatArray = npt.NDArray[np.float64]
 
 
 def truth_report(
@@ -43,14 +51,16 @@ def truth_report(
     floor = relative_error_um(held_obs, world.kinematics, setup.camera, setup.sensor_mount)
 
     model = CalibrationModel(setup)
-    artifacts = {k: (T[:3, 3], T[:3, 2]) for k, T in enumerate(world.artifact_poses()) if k in setup.artifacts}
+    artifacts = {
+        k: (T[:3, 3], T[:3, 2]) for k, T in enumerate(world.artifact_poses()) if k in setup.artifacts
+    }
     delta = equivalent_errors(model, world.true_dh, world.kinematics.tool, artifacts)
     values = model.nominal + delta
     values[model.index["d2"]] += model.nominal[model.index["d3"]]
     truth = {
         calibration_name(n) if n == "d2" else n: float(v) for n, v in zip(model.names, values, strict=True)
     }
-    rows = []
+    rows: list[dict[str, Any]] = []
     for p in result.parameters:
         if not p.identified or not p.sigma or p.name not in truth:
             continue
@@ -74,9 +84,85 @@ def truth_report(
         "floor_um": float(floor),
         "identified": len(rows),
         "inside_95": float(np.mean([r["inside_95"] for r in rows])) if rows else float("nan"),
-        "max_abs_z": float(max(abs(r["z"]) for r in rows)) if rows else float("nan"),
+        "max_abs_z": float(max(abs(float(r["z"])) for r in rows)) if rows else float("nan"),
         "parameters": rows,
     }
 
 
-__all__ = ["truth_report"]
+def _estimated_artifact(result: CalibrationResult, setup: Any, k: int) -> tuple[FloatArray, FloatArray]:
+    """Artifact ``k``'s crossing and upward normal as the calibration estimated them (its frame)."""
+    value = {p.name: p.estimate for p in result.parameters}
+    point = np.array([value[f"artifact{k}_x"], value[f"artifact{k}_y"], value[f"artifact{k}_z"]])
+    n0 = np.asarray(setup.normal(k), dtype=float)
+    rx, ry = math.radians(value[f"artifact{k}_rx"]), math.radians(value[f"artifact{k}_ry"])
+    return point, rot_x(rx) @ rot_y(ry) @ n0
+
+
+def pointing_errors_um(
+    devices: StationDevices,
+    cell: CalibrationCell,
+    result: CalibrationResult,
+    *,
+    placements: Sequence[int],
+    turn_deg: float = 25.0,
+    calibrated: bool = True,
+    measure_params: MeasureParams | None = None,
+    settle_s: float = 0.25,
+) -> list[float | None]:
+    """Where the crossing lands, relative to the optical axis (um in the artifact plane), when the arm is
+    sent to look square at each placement's crossing from a turn not in the session: with the calibrated
+    model to the estimated artifact (a compensated move), or with the nominal model to the taught one.
+
+    The arm travels through lift poses between placements (as the plan does), every waypoint checked.
+    ``devices`` must be connected (robot, camera). None where the crossing is not measured (out of view
+    or focus). The arm settles ``settle_s`` (wall time) before each capture.
+    """
+    from station.calibration import compensated_joints
+    from station.calibration_session import calibration_setup
+    from station.plans.calibration import quantised, split_move, square_on
+    from station.vision import MeasurementError, measure
+
+    robot = devices.robot
+    assert robot is not None
+    kin = result.kinematics() if calibrated else cell.kinematics
+    setup = calibration_setup(cell, 640, 480)
+    cx, cy = setup.camera.principal_px
+    out: list[float | None] = []
+    for k in placements:
+        if calibrated:
+            point, up = _estimated_artifact(result, setup, k)
+        else:
+            point = np.asarray(cell.artifacts_mm[k], dtype=float)
+            up = np.asarray(setup.normal(k), dtype=float)
+        up = up / np.linalg.norm(up)
+        turn = (cell.artifact_turns_deg[k] if cell.artifact_turns_deg else 0.0) + turn_deg
+        pose = transform(
+            square_on(up) @ LOOK_DOWN @ rot_z(math.radians(turn)), point + cell.working_distance_mm * up
+        )
+        here = tuple(robot.where().commanded_joints_deg)
+        target = quantised(compensated_joints(kin, pose, current_deg=here))
+        limit = cell.max_step_deg * 0.9
+        chain = [*split_move(here, lift_pose(here), limit)]
+        chain += split_move(chain[-1], lift_pose(target), limit)
+        chain += split_move(chain[-1], target, limit)
+        previous = here
+        for q in chain:
+            robot.check_move(q, start_deg=previous)
+            previous = q
+        for q in chain:
+            robot.move_joints(q)
+        time.sleep(settle_s)
+        frame = devices.camera.grab()
+        try:
+            m = measure(frame.image, measure_params or MeasureParams())
+        except MeasurementError:  # the crossing is out of view or out of focus
+            out.append(None)
+            continue
+        depth = cell.working_distance_mm
+        dx = (m.center_px[0] - cx) * depth / cell.focal_px
+        dy = (m.center_px[1] - cy) * depth / cell.focal_px
+        out.append(math.hypot(dx, dy) * 1000.0)
+    return out
+
+
+__all__ = ["pointing_errors_um", "truth_report"]

@@ -1,0 +1,149 @@
+"""A calibration session on the simulated station, end to end, judged against the world's truth.
+
+The small configuration: the five artifacts of the sim cell, three camera turns, every joint solution
+(51 configurations, a minute or two; two turns leave the fit short of data: 35 um against a 14 um
+floor in one trial). The issue's targets on it: the relative error with the
+calibrated model at least 10x smaller than with the nominal one and within 2x of the floor (the same
+figure with the true model); every identified parameter within 4 sigma of the truth. The share of
+parameters inside their 95 % intervals is asserted at 90 % on the rich synthetic sets
+(tests/calibration) and measured on the full configuration by ``make bench``; this small set, whose
+weak directions are correlated, is held to 75 % (84 % measured).
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from sim.calibration_truth import truth_report
+from station.calibration import CalibrationResult
+from station.calibration_session import calibration_cell_from_config
+from station.kinematics import Kinematics
+from station.runner import stored_captures
+from station.session import SessionOutcome, open_record, run_session
+from station.vision import MeasureParams
+
+SMALL = {"turns_deg": [-20.0, 70.0, 160.0], "settle_s": 0.05}
+
+
+@pytest.fixture(scope="module")
+def session(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, SessionOutcome]:
+    data = tmp_path_factory.mktemp("calibration")
+    outcome = run_session("calibration", sim=True, params=SMALL, data=data)
+    return data, outcome
+
+
+@pytest.mark.timeout(300)
+def test_calibration_meets_its_targets_against_the_truth(session: tuple[Path, SessionOutcome]) -> None:
+    data, outcome = session
+    assert outcome.state == "succeeded", outcome.error
+    results = outcome.results
+    assert set(results["relative_error_um"]) == {"before", "after", "floor"}
+    assert results["unidentifiable"] == [
+        "alpha0",
+        "a0",
+        "d1",
+        "theta1_offset",
+        "d2-d3",
+        "d6",
+        "theta6_offset",
+    ]
+    assert "d2+d3" in {p["name"] for p in results["parameters"] if p["identified"]}
+    assert results["configurations"] >= 45  # of 51 planned: the plan aligned nearly all of them
+
+    with open_record(data) as record:
+        row = record.get_session(outcome.id)
+        cell = calibration_cell_from_config(row.config, MeasureParams())
+        assert cell is not None
+        truth = truth_report(results, stored_captures(record, outcome.id), cell)
+    before, after, floor = truth["before_um"], truth["after_um"], truth["floor_um"]
+    assert before > 300.0  # the nominal model misses by a fraction of a millimetre or more
+    assert after * 10 <= before
+    assert after <= 2 * floor, f"after {after:.1f} um, true floor {floor:.1f} um"
+    # the session's own floor estimate (from its return captures) is near the true one
+    assert 0.4 * floor <= results["relative_error_um"]["floor"] <= 1.5 * floor
+    assert truth["max_abs_z"] <= 4.0, [p for p in truth["parameters"] if abs(p["z"]) > 4]
+    assert truth["inside_95"] >= 0.75
+    assert truth["identified"] == results["identified_count"]  # every identified one judged
+
+
+@pytest.mark.timeout(300)
+def test_station_calibrate_identifies_the_stored_session_again(
+    session: tuple[Path, SessionOutcome], tmp_path: Path
+) -> None:
+    data, outcome = session
+    out = tmp_path / "cal.json"
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "station.cli",
+            "calibrate",
+            outcome.id,
+            "--data",
+            str(data),
+            "--json",
+            "--out",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=240,
+    )
+    assert proc.returncode == 0, proc.stderr
+    again: dict[str, Any] = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert again["id"] == outcome.id
+    assert again["kind"] == "calibration"
+    rel, rel0 = again["results"]["relative_error_um"], outcome.results["relative_error_um"]
+    assert rel == pytest.approx(rel0, rel=1e-6)  # the same data, the same held-out draw: the same figures
+    # the written parameter set loads as a calibrated arm, with the session's estimates
+    saved = CalibrationResult.load(out)
+    kin = Kinematics.from_calibration(out)
+    assert [r.a_mm for r in kin.dh] == pytest.approx([r.a_mm for r in saved.kinematics().dh])
+    assert saved.identified_count == outcome.results["identified_count"]
+    # another hold-out draw: another split, figures of the same size
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "station.cli",
+            "calibrate",
+            outcome.id,
+            "--data",
+            str(data),
+            "--json",
+            "--param",
+            "seed=5",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=240,
+    )
+    assert proc.returncode == 0, proc.stderr
+    other = json.loads(proc.stdout.strip().splitlines()[-1])["results"]
+    assert other["held_out_configurations"] != outcome.results["held_out_configurations"]
+    assert other["relative_error_um"]["after"] * 10 <= other["relative_error_um"]["before"]
+
+
+def test_station_calibrate_refuses_what_it_cannot_identify(session: tuple[Path, SessionOutcome]) -> None:
+    data, outcome = session
+
+    def calibrate(*args: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run(
+            [sys.executable, "-m", "station.cli", "calibrate", *args, "--data", str(data)],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+
+    proc = calibrate("nosuchsession")
+    assert proc.returncode == 2
+    assert "nosuchsession" in proc.stderr
+    proc = calibrate(outcome.id, "--param", "turns_deg=[0]")
+    assert proc.returncode == 2
+    assert "only the analysis's parameters can change" in proc.stderr
