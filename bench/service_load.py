@@ -5,9 +5,18 @@ poll (session, station, prompt, session list), ``streamers`` of them follow the 
 and reconnect with Last-Event-ID. It stops when the session has ended or ``max_s`` has passed (and after
 ``max_requests``), and returns request counts, errors and latency percentiles.
 
-``python -m bench.service_load [--clients 50] [--seconds 60]``: a repeatability session on the simulated
-station without clients and then with them; prints requests/s, p50/p99 latency, errors, and the runner's
-cycle period both ways (the stall the clients cause). Traffic goes to 127.0.0.1 only.
+``python -m bench.service_load [--clients 50] [--seconds 60] [--time-scale 1]``: a repeatability session
+on the simulated station without clients and then one with them; prints requests/s, p50/p99 latency,
+errors, and for both sessions the runner's cycle period and its per-cycle software overhead.
+
+The overhead is ``bench.sessions_bench``'s (``make bench``'s station figure): a cycle's period on the
+runner's thread (one step's start to the next's) less the arm's motion time for the cycle's moves (the
+twin's trapezoid profiles, divided by the twin's time scale), the plan's deliberate settle wait and the
+simulated camera's grab time (rendering a frame, which a real camera does not charge to the station).
+What remains is the station's own software on the arm's critical path; the issue's goal is that it
+stays within 10 % of its figure without clients. By default the twin runs at real time (``time_scale``
+1, as ``make bench``); ``--time-scale 100`` (the service's default) shrinks the motion so that the
+software dominates the period. Traffic goes to 127.0.0.1 only.
 """
 
 from __future__ import annotations
@@ -18,6 +27,7 @@ import contextlib
 import itertools
 import json
 import statistics
+import sys
 import tempfile
 import threading
 import time
@@ -152,6 +162,83 @@ def load(
     return asyncio.run(_load(base, token, session_id, clients, streamers, max_s, max_requests))
 
 
+class CycleMeter:
+    """Times a simulated station's repeatability cycles the way ``bench.sessions_bench`` does.
+
+    ``attach(service)`` wraps the sim camera's ``grab`` (timed) and subscribes to the service's events;
+    :meth:`overhead` then splits each cycle of a session into motion, settle, camera and software. The
+    listener runs on the runner's thread: it only notes a time and the twin's last move (no copying).
+    """
+
+    def __init__(self, devices: Any, speed_pct: float, settle_s: float) -> None:
+        self.devices = devices
+        self.speed_pct = speed_pct
+        self.settle_s = settle_s
+        self.arm = devices.truth.twin.arm
+        self.time_scale = float(self.arm.params.time_scale)
+        self.started: dict[tuple[str, int], tuple[float, Any]] = {}
+        self.grabs: dict[tuple[str, int], float] = {}
+        self._step: tuple[str, int] | None = None
+        camera = devices.camera
+        real_grab = camera.grab
+
+        def timed_grab(timeout_s: float = 2.0) -> Any:
+            t0 = time.perf_counter()
+            try:
+                return real_grab(timeout_s)
+            finally:
+                if self._step is not None:
+                    self.grabs[self._step] = time.perf_counter() - t0
+
+        camera.grab = timed_grab
+
+    def on_event(self, e: Any) -> None:
+        if e.type == "step_started":
+            log = self.arm.motion_log
+            key = (e.session_id, int(e.data["index"]))
+            self._step = key
+            self.started[key] = (time.perf_counter(), log[-1] if log else None)
+
+    def overhead(self, session_id: str, *, since_s: float | None = None, until_s: float | None = None) -> Any:
+        """Per-cycle means (s) over the session's cycles (steps 1..; step 0 is the reference capture)
+        that started within ``[since_s, until_s]`` (perf_counter times): call it right after the session
+        ended (the twin keeps its last 1,000 moves)."""
+        from bench.sessions_bench import _motion_time
+
+        twin = self.devices.truth.twin
+        log = list(self.arm.motion_log)
+        where = {id(m): i for i, m in enumerate(log)}
+        steps = sorted(i for sid, i in self.started if sid == session_id)
+        rows = []
+        for a, b in itertools.pairwise(steps):
+            if a == 0 or b != a + 1:
+                continue
+            (t_a, m_a), (t_b, m_b) = self.started[(session_id, a)], self.started[(session_id, b)]
+            if (since_s is not None and t_a < since_s) or (until_s is not None and t_b > until_s):
+                continue
+            if m_a is None or m_b is None or id(m_a) not in where or id(m_b) not in where:
+                continue
+            moves = log[where[id(m_a)] + 1 : where[id(m_b)] + 1]
+            motion = sum(_motion_time(twin, m.start_deg, m.end_deg, self.speed_pct) for m in moves)
+            motion /= self.time_scale
+            grab = self.grabs.get((session_id, a), 0.0)
+            rows.append((t_b - t_a, motion, grab))
+        if not rows:
+            return {"cycles": 0}
+        period = [r[0] for r in rows]
+        software = [p - m - g - self.settle_s for p, m, g in rows]
+        return {
+            "cycles": len(rows),
+            "period_ms": round(statistics.mean(period) * 1000, 2),
+            "period_median_ms": round(statistics.median(period) * 1000, 2),
+            "motion_ms": round(statistics.mean(r[1] for r in rows) * 1000, 2),
+            "settle_ms": round(self.settle_s * 1000, 2),
+            "camera_ms": round(statistics.mean(r[2] for r in rows) * 1000, 2),
+            "software_ms": round(statistics.mean(software) * 1000, 2),
+            "software_median_ms": round(statistics.median(software) * 1000, 2),
+        }
+
+
 def cycle_period_s(record: Any, session_id: str) -> float:
     """The runner's median step period (s) from the session's step_finished events."""
     times = [
@@ -170,11 +257,22 @@ def main() -> None:
     parser.add_argument("--clients", type=int, default=50)
     parser.add_argument("--streamers", type=int, default=10)
     parser.add_argument("--seconds", type=float, default=60.0)
-    parser.add_argument("--cycles", type=int, default=300)
+    parser.add_argument("--cycles", type=int, default=0, help="cycles per session (default: enough)")
+    parser.add_argument("--time-scale", type=float, default=1.0, help="the twin's time scale (1: real time)")
+    parser.add_argument(
+        "--switch-interval", type=float, default=None, help="sys.setswitchinterval (s) for this run"
+    )
     args = parser.parse_args()
+    if args.switch_interval is not None:
+        sys.setswitchinterval(args.switch_interval)
     token = "bench-token-0123456789abcdef"
+    speed_pct, settle_s = 80, 0.25
     with tempfile.TemporaryDirectory() as tmp:
-        service = StationService(ServiceSettings(sim=True, data=Path(tmp)))
+        service = StationService(
+            ServiceSettings(sim=True, data=Path(tmp), sim_options={"seed": 0, "time_scale": args.time_scale})
+        )
+        meter = CycleMeter(service.devices, speed_pct, settle_s)
+        service.subscribe(meter.on_event)
         app = create_app(service, Access(token, True))
         server = uvicorn.Server(
             uvicorn.Config(app, host="127.0.0.1", port=0, access_log=False, log_config=None, lifespan="on")
@@ -184,17 +282,29 @@ def main() -> None:
         while not server.started:
             time.sleep(0.01)
         base = f"http://127.0.0.1:{server.servers[0].sockets[0].getsockname()[1]}"
-        params = {"cycles": args.cycles, "joints": [1], "warmup_cycles": 0}
+        # enough cycles for the clients' whole run (a real-time cycle takes about 1.5 s; 0.4 s at 100x)
+        cycles = args.cycles or int(args.seconds / (1.2 if args.time_scale <= 1 else 0.3)) + 10
+        params = {
+            "cycles": cycles,
+            "joints": [1],
+            "warmup_cycles": 0,
+            "speed_pct": speed_pct,
+            "settle_s": settle_s,
+        }
         try:
             quiet = service.create_session("repeatability", params).row.id
             service.wait()
+            quiet_over = meter.overhead(quiet)
             with_clients = service.create_session("repeatability", params).row.id
+            t0 = time.perf_counter()
             stats = load(
                 base, token, with_clients, clients=args.clients, streamers=args.streamers, max_s=args.seconds
             )
+            t1 = time.perf_counter()
             with contextlib.suppress(Exception):
                 service.act(with_clients, "abort")
             service.wait()
+            loaded_over = meter.overhead(with_clients, since_s=t0, until_s=t1)
             quiet_s = cycle_period_s(service.record, quiet)
             loaded_s = cycle_period_s(service.record, with_clients)
         finally:
@@ -204,9 +314,18 @@ def main() -> None:
         **stats.summary(),
         "clients": args.clients,
         "streamers": args.streamers,
+        "time_scale": args.time_scale,
+        "switch_interval_s": sys.getswitchinterval(),
         "cycle_period_quiet_ms": round(quiet_s * 1000, 2),
         "cycle_period_loaded_ms": round(loaded_s * 1000, 2),
         "runner_stall_pct": round((loaded_s / quiet_s - 1) * 100, 1),
+        "overhead_quiet": quiet_over,
+        "overhead_loaded": loaded_over,
+        "overhead_growth_pct": (
+            round((loaded_over["software_ms"] / quiet_over["software_ms"] - 1) * 100, 1)
+            if quiet_over.get("cycles") and loaded_over.get("cycles")
+            else None
+        ),
     }
     print(json.dumps(out, indent=2))
     results = Path(__file__).parent / "results"
