@@ -112,16 +112,20 @@ async def _wait(waiter: asyncio.Event, timeout_s: float) -> None:
         await asyncio.wait_for(waiter.wait(), timeout_s)
 
 
-def session_cursor(
+async def session_cursor(
     request: Request, session_id: str, last_event_id: str | None = Header(None)
 ) -> tuple[str, int]:
     """The session's full id and the sequence number to resume after: checked before the stream starts
-    (404 for an unknown session, 422 for a malformed Last-Event-ID)."""
+    (404 for an unknown session, 422 for a malformed Last-Event-ID). Coroutines, like the token check
+    (see ``api/_auth.py``): this process's running session needs no look-up."""
     after = _last_id(last_event_id)
-    return service_of(request).record.get_session(session_id).id, after
+    service = service_of(request)
+    if service.session_ended(session_id) is not None:  # this process's latest session, by its full id
+        return session_id, after
+    return (await run_in_threadpool(service.record.get_session, session_id)).id, after
 
 
-def station_cursor(last_event_id: str | None = Header(None)) -> int:
+async def station_cursor(last_event_id: str | None = Header(None)) -> int:
     return _last_id(last_event_id)
 
 

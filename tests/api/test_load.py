@@ -10,6 +10,7 @@ only after the session's state changes, not on every poll).
 
 from __future__ import annotations
 
+import logging
 from typing import Any
 
 import pytest
@@ -21,7 +22,10 @@ from tests.api.conftest import TOKEN, Served, wait_final
 
 @pytest.mark.slow
 @pytest.mark.timeout(300)
-def test_fifty_clients_while_a_session_runs(served: Served, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_fifty_clients_while_a_session_runs(
+    served: Served, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    caplog.set_level(logging.WARNING)
     service = served.service
     subscriptions: list[Any] = []
     real_subscribe = service.subscribe
@@ -50,6 +54,9 @@ def test_fifty_clients_while_a_session_runs(served: Served, monkeypatch: pytest.
         summary = stats.summary()
         print(f"load: {summary}; subscriptions {len(subscriptions)}; row reads {len(row_reads)}")
         assert stats.errors == []
+        # streamers hang up mid-stream now and then: a client leaving is no server error
+        errors = [r for r in caplog.records if r.levelno >= logging.ERROR]
+        assert errors == [], [f"{r.name}: {r.getMessage()}" for r in errors[:3]]
         assert stats.requests > 50
         assert stats.events > 0
         assert final["state"] == "succeeded", final["error"]
