@@ -20,6 +20,7 @@ for what the buffer does not hold).
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import io
 import logging
 import threading
@@ -512,6 +513,12 @@ class StationService:
     def _view(self, row: SessionRow) -> SessionView:
         runner = self._runner
         if runner is not None and runner.session_id == row.id:
+            state = runner.state
+            if state not in FINAL_STATES and row.state != state:
+                # the runner's state is set (in memory, under its lock) before the record's: a client that
+                # sees the prompt it raised finds the session awaiting the operator; a final state comes
+                # from the record, with its error
+                row = dataclasses.replace(row, state=str(state))
             return SessionView(row, runner.progress())
         done = (
             len([s for s in self.record.steps(row.id) if s.state == "done"])
