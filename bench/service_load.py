@@ -270,6 +270,8 @@ def main() -> None:
     parser.add_argument(
         "--switch-interval", type=float, default=None, help="sys.setswitchinterval (s) for this run"
     )
+    parser.add_argument("--loop", default="auto", help="uvicorn's event loop (auto: uvloop when installed)")
+    parser.add_argument("--http", default="auto", help="uvicorn HTTP parser (auto: httptools if installed)")
     args = parser.parse_args()
     if args.switch_interval is not None:
         sys.setswitchinterval(args.switch_interval)
@@ -283,7 +285,16 @@ def main() -> None:
         service.subscribe(meter.on_event)
         app = create_app(service, Access(token, True))
         server = uvicorn.Server(
-            uvicorn.Config(app, host="127.0.0.1", port=0, access_log=False, log_config=None, lifespan="on")
+            uvicorn.Config(
+                app,
+                host="127.0.0.1",
+                port=0,
+                access_log=False,
+                log_config=None,
+                lifespan="on",
+                loop=args.loop,
+                http=args.http,
+            )
         )
         thread = threading.Thread(target=server.run, daemon=True)
         thread.start()
@@ -343,6 +354,7 @@ def main() -> None:
         "rounds": args.rounds,
         "time_scale": args.time_scale,
         "switch_interval_s": sys.getswitchinterval(),
+        "uvicorn": {"loop": args.loop, "http": args.http},
         "overhead_quiet": quiet_over,
         "overhead_loaded": loaded_over,
         "cycle_period_growth_pct": _growth(quiet_over, loaded_over, "period_ms"),
