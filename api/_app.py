@@ -6,7 +6,9 @@ import asyncio
 import contextlib
 import logging
 from collections.abc import AsyncIterator
+from typing import Any
 
+import anyio
 from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
 
@@ -37,6 +39,43 @@ class _NoQueryStrings(logging.Filter):
 
 
 ACCESS_FILTER = _NoQueryStrings()
+
+_GONE = (anyio.BrokenResourceError, anyio.ClosedResourceError)
+
+
+class _ClientsLeaving:
+    """ASGI middleware: a client leaving an event stream is not a server error.
+
+    When a client disconnects while an SSE response still has an event in flight, FastAPI's own
+    keep-alive task (``fastapi.routing``, SSE) finds its output stream closed and its task group raises
+    ``BrokenResourceError`` in an exception group after the response has started (fastapi discussion
+    #15725): logged as an unexpected error and "Exception in ASGI application" for a normal
+    disconnect. This drops exactly that, once the response has started: an exception group whose
+    every exception is anyio's broken or closed stream. Anything else still propagates.
+    """
+
+    def __init__(self, app: Any) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        started = False
+
+        async def send_tracking(message: Any) -> None:
+            nonlocal started
+            if message["type"] == "http.response.start":
+                started = True
+            await send(message)
+
+        try:
+            await self.app(scope, receive, send_tracking)
+        except BaseExceptionGroup as group:
+            _, rest = group.split(_GONE)
+            if not started or rest is not None:
+                raise
+            log.debug("%s: the client left during the response", scope.get("path"))
 
 
 def create_app(service: StationService, access: Access, *, close_service: bool = True) -> FastAPI:
@@ -69,6 +108,7 @@ def create_app(service: StationService, access: Access, *, close_service: bool =
     app.state.access = access
     app.state.stopping = asyncio.Event()
     _errors.install(app)
+    app.add_middleware(_ClientsLeaving)
     for router in (station_router, sessions_router, prompt_router, events_router, page_router):
         app.include_router(router)
     app.mount("/static", StaticFiles(directory=STATIC), name="static")

@@ -87,12 +87,16 @@ def _access(request: Request) -> Access:
     return access
 
 
-def require_token(request: Request) -> None:
+# The dependencies are coroutines on purpose: FastAPI runs a plain function in its thread pool, a hop to
+# another thread and back on every request, each handing the GIL (which the session runner shares) over.
+
+
+async def require_token(request: Request) -> None:
     """Dependency of mutations, prompt answers and event streams."""
     _access(request).check(request)
 
 
-def read_access(request: Request) -> None:
+async def read_access(request: Request) -> None:
     """Dependency of GET endpoints: open on loopback with ``open_reads``, else the token."""
     access = _access(request)
     if not access.open_reads:

@@ -1,20 +1,22 @@
 """The API's bodies: pydantic models, the same objects the CLI prints with ``--json``.
 
-``SessionModel`` is ``station sessions --json``'s object (``session_json``) plus the live progress;
-``OutcomeModel`` is ``station run --json``'s; ``MeasureResult`` is a ``station measure --json`` line.
+The session objects are ``station.resources``' models, which the CLI renders too (one model, two
+renderings): ``SessionModel`` is :class:`~station.resources.SessionResource` (``station sessions
+--json``'s object plus the live progress), ``OutcomeModel`` :class:`~station.resources.SessionOutcome`
+(``station run --json``'s object). The rest are the API's own (requests, prompts, events, problems).
 """
 
 from __future__ import annotations
 
 from typing import Any, Literal
 
+from fastapi.responses import Response
 from pydantic import BaseModel, ConfigDict, Field
 
 from api._service import SessionView
-from station.commands.sessions import session_json
 from station.prompts import Prompt, PromptAnswer
 from station.record import EventRow
-from station.runner import RunnerState
+from station.resources import SessionOutcome, SessionResource
 
 
 class Problem(BaseModel):
@@ -32,32 +34,20 @@ class Health(BaseModel):
     version: str
 
 
-class ProgressModel(BaseModel):
-    done: int = Field(ge=0)
-    total: int = Field(ge=0)
-    eta_s: float | None = None
+SessionModel = SessionResource
+OutcomeModel = SessionOutcome
 
 
-class SessionModel(BaseModel):
-    """A session: ``station sessions --json``'s object and its progress."""
+def session_model(view: SessionView) -> SessionResource:
+    """The resource of a session the service shows (its row and live progress)."""
+    return SessionResource.of_row(view.row, view.progress)
 
-    id: str
-    kind: str
-    state: RunnerState
-    created_at: str
-    updated_at: str
-    station: str
-    parent_id: str | None
-    error: str | None
-    params: dict[str, Any]
-    results: dict[str, Any]
-    progress: ProgressModel
 
-    @classmethod
-    def of(cls, view: SessionView) -> SessionModel:
-        doc = session_json(view.row)
-        doc["results"] = doc["results"] or {}
-        return cls.model_validate({**doc, "progress": view.progress.to_json()})
+def rendered(model: BaseModel, status_code: int = 200) -> Response:
+    """``model`` as the response body, rendered once by pydantic (the route's ``response_model`` still
+    documents it): FastAPI would dump the model, validate the dump and serialize it again, on every poll.
+    For models the service builds from checked data (the record's rows, the runner's progress)."""
+    return Response(model.model_dump_json(), status_code=status_code, media_type="application/json")
 
 
 class SessionList(BaseModel):
@@ -80,16 +70,6 @@ class ActionRequest(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     action: Literal["pause", "resume", "stop", "abort"]
-
-
-class OutcomeModel(BaseModel):
-    """``station run --json``: ``{"id", "kind", "state", "results", "error"}``."""
-
-    id: str
-    kind: str
-    state: RunnerState
-    results: dict[str, Any]
-    error: str | None
 
 
 class PromptFieldModel(BaseModel):

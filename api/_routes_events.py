@@ -3,8 +3,13 @@
 
 The record is the source: a stream sends what the record holds after the client's last id, then waits
 for the runner's next event (woken at once in this process, and polling the record every second for
-sessions run by another process). HTTP stays the source of truth: an event is a hint to refetch, and a
-client that missed some gets them again from the record. A session's stream ends once the session has
+sessions run by another process). A session's stream reads the running session's events from the
+service's in-memory buffer (the record only for older ones), and all the streams of the app share one
+subscription to the runner's events (:class:`_Hub`): the runner's thread pays for one wake-up of the
+event loop per burst of events, not one per client, and each event is rendered once.
+
+HTTP stays the source of truth: an event is a hint to refetch, and a client that missed some gets them
+again from the record. A session's stream ends once the session has
 ended and everything is sent; the station's stream runs until the client leaves or the server stops.
 """
 
@@ -13,6 +18,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 from collections.abc import AsyncIterator
+from typing import Any
 
 from fastapi import APIRouter, Depends, Header, Request
 from fastapi.concurrency import run_in_threadpool
@@ -40,41 +46,91 @@ def _last_id(value: str | None) -> int:
     return int(text)
 
 
-class _Wakeup:
-    """Set from the runner's thread when an event is recorded; the stream then reads the record."""
+RENDERED = 4096
+"""Events kept rendered (their ``data:`` JSON) for the streams that send them next."""
 
-    def __init__(self, request: Request) -> None:
-        self._loop = asyncio.get_running_loop()
-        self.event = asyncio.Event()
+
+class _Hub:
+    """The app's one subscription to the service's events, on the event loop ``loop``.
+
+    The runner's thread calls :meth:`_on_event` under the runner's lock: it schedules one wake-up of
+    the loop unless one is pending already (a write to the loop's self-pipe, a system call that hands
+    the GIL over: one per burst, not one per client), and the loop then wakes every stream.
+    """
+
+    def __init__(self, request: Request, loop: asyncio.AbstractEventLoop) -> None:
+        self.loop = loop
+        self._waiters: set[asyncio.Event] = set()
+        self._pending = False
+        self._rendered: dict[int, str] = {}
         self._unsubscribe = service_of(request).subscribe(self._on_event)
 
     def _on_event(self, _: EventRow) -> None:
-        self._loop.call_soon_threadsafe(self.event.set)
+        if self._pending:
+            return
+        self._pending = True
+        try:
+            self.loop.call_soon_threadsafe(self._wake)
+        except RuntimeError:  # the loop has closed (the server stopped)
+            self._unsubscribe()
 
-    async def wait(self, timeout_s: float) -> None:
-        with contextlib.suppress(TimeoutError):
-            await asyncio.wait_for(self.event.wait(), timeout_s)
-        self.event.clear()
+    def _wake(self) -> None:
+        self._pending = False
+        for waiter in self._waiters:
+            waiter.set()
 
-    def close(self) -> None:
-        self._unsubscribe()
+    def waiter(self) -> asyncio.Event:
+        w = asyncio.Event()
+        self._waiters.add(w)
+        return w
+
+    def release(self, waiter: asyncio.Event) -> None:
+        self._waiters.discard(waiter)
+
+    def render(self, e: EventRow) -> str:
+        """The event's ``data:`` JSON, rendered once for every stream."""
+        text = self._rendered.get(e.id)
+        if text is None:
+            text = EventModel.of(e).model_dump_json()
+            if len(self._rendered) >= RENDERED:
+                self._rendered.pop(next(iter(self._rendered)))
+            self._rendered[e.id] = text
+        return text
 
 
-def session_cursor(
+def _hub(request: Request) -> _Hub:
+    loop = asyncio.get_running_loop()
+    state: Any = request.app.state
+    hub: _Hub | None = getattr(state, "event_hub", None)
+    if hub is None or hub.loop is not loop:
+        hub = state.event_hub = _Hub(request, loop)
+    return hub
+
+
+async def _wait(waiter: asyncio.Event, timeout_s: float) -> None:
+    with contextlib.suppress(TimeoutError):
+        await asyncio.wait_for(waiter.wait(), timeout_s)
+
+
+async def session_cursor(
     request: Request, session_id: str, last_event_id: str | None = Header(None)
 ) -> tuple[str, int]:
     """The session's full id and the sequence number to resume after: checked before the stream starts
-    (404 for an unknown session, 422 for a malformed Last-Event-ID)."""
+    (404 for an unknown session, 422 for a malformed Last-Event-ID). Coroutines, like the token check
+    (see ``api/_auth.py``): this process's running session needs no look-up."""
     after = _last_id(last_event_id)
-    return service_of(request).record.get_session(session_id).id, after
+    service = service_of(request)
+    if service.session_ended(session_id) is not None:  # this process's latest session, by its full id
+        return session_id, after
+    return (await run_in_threadpool(service.record.get_session, session_id)).id, after
 
 
-def station_cursor(last_event_id: str | None = Header(None)) -> int:
+async def station_cursor(last_event_id: str | None = Header(None)) -> int:
     return _last_id(last_event_id)
 
 
-def _sse(e: EventRow, event_id: int) -> ServerSentEvent:
-    return ServerSentEvent(data=EventModel.of(e).model_dump(mode="json"), event=e.type, id=str(event_id))
+def _sse(hub: _Hub, e: EventRow, event_id: int) -> ServerSentEvent:
+    return ServerSentEvent(raw_data=hub.render(e), event=e.type, id=str(event_id))
 
 
 @router.get(
@@ -88,27 +144,34 @@ async def session_events(
     """The session's events from after ``Last-Event-ID`` (its sequence number), live until it ends."""
     service = service_of(request)
     sid, after_seq = cursor
-    wake = _Wakeup(request)
+    hub = _hub(request)
+    waiter = hub.waiter()
     try:
         yield ServerSentEvent(comment="station session events", retry=RETRY_MS)
         last_seq = after_seq
         while True:
-            batch = await run_in_threadpool(service.events_after_seq, sid, last_seq)
+            waiter.clear()  # before reading: an event recorded after the read wakes the wait below
+            # the running session's events from memory, on the loop; the record (a thread) otherwise
+            batch = service.buffered_events(sid, last_seq)
+            if batch is None:
+                batch = await run_in_threadpool(service.events_after_seq, sid, last_seq)
             for e in batch:
-                yield _sse(e, e.seq)
+                yield _sse(hub, e, e.seq)
                 last_seq = e.seq
             if not batch:
-                state = (await run_in_threadpool(service.record.get_session, sid)).state
-                if state in FINAL_STATES:
+                ended = service.session_ended(sid)
+                if ended is None:  # not this process's session: ask the record
+                    ended = (await run_in_threadpool(service.record.get_session, sid)).state in FINAL_STATES
+                if ended:
                     # a last look: events recorded between the read and the state
                     for e in await run_in_threadpool(service.events_after_seq, sid, last_seq):
-                        yield _sse(e, e.seq)
+                        yield _sse(hub, e, e.seq)
                     return
                 if request.app.state.stopping.is_set() or await request.is_disconnected():
                     return
-                await wake.wait(POLL_S)
+                await _wait(waiter, POLL_S)
     finally:
-        wake.close()
+        hub.release(waiter)
 
 
 @router.get("/events", response_class=EventSourceResponse, dependencies=[Depends(require_token)])
@@ -117,17 +180,19 @@ async def station_events(
 ) -> AsyncIterator[ServerSentEvent]:
     """Every session's events from after ``Last-Event-ID`` (the station-wide id), until the client leaves."""
     service = service_of(request)
-    wake = _Wakeup(request)
+    hub = _hub(request)
+    waiter = hub.waiter()
     try:
         yield ServerSentEvent(comment="station events", retry=RETRY_MS)
         while True:
+            waiter.clear()
             batch = await run_in_threadpool(service.record.events, None, after_id=after_id)
             for e in batch:
-                yield _sse(e, e.id)
+                yield _sse(hub, e, e.id)
                 after_id = e.id
             if not batch:
                 if request.app.state.stopping.is_set() or await request.is_disconnected():
                     return
-                await wake.wait(POLL_S)
+                await _wait(waiter, POLL_S)
     finally:
-        wake.close()
+        hub.release(waiter)

@@ -14,7 +14,15 @@ from fastapi.responses import FileResponse, Response
 from api._auth import read_access, require_token
 from api._deps import service_of
 from api._errors import ApiError
-from api._models import ActionRequest, OutcomeModel, SessionCreate, SessionList, SessionModel
+from api._models import (
+    ActionRequest,
+    OutcomeModel,
+    SessionCreate,
+    SessionList,
+    SessionModel,
+    rendered,
+    session_model,
+)
 from api._routes_station import read_body
 
 router = APIRouter(prefix="/api/v1/sessions")
@@ -24,35 +32,36 @@ _FIGURE_NAME = re.compile(r"[A-Za-z0-9_.-]{1,100}")
 
 
 @router.post("", status_code=201, response_model=SessionModel, dependencies=[Depends(require_token)])
-async def create(request: Request, body: SessionCreate) -> SessionModel:
+async def create(request: Request, body: SessionCreate) -> Response:
     """Create a session and start it (409 while another one runs)."""
     service = service_of(request)
     view = await run_in_threadpool(service.create_session, body.kind, body.params, body.set)
-    return SessionModel.of(view)
+    return rendered(session_model(view), 201)
 
 
 @router.get("", response_model=SessionList, dependencies=[Depends(read_access)])
 async def list_sessions(
     request: Request, limit: int = Query(50, ge=1, le=1000), offset: int = Query(0, ge=0, le=10**9)
-) -> SessionList:
-    # quick reads (a millisecond of SQLite, WAL: never waiting on the runner) run on the loop: a hop to the
-    # thread pool and back costs more than the read when the runner's threads want the GIL
+) -> Response:
+    # quick reads (the service's cache while a session runs, else a millisecond of SQLite, WAL: never
+    # waiting on the runner) run on the loop: a hop to the thread pool and back costs more than the read
+    # when the runner's threads want the GIL
     views, total = service_of(request).list_sessions(limit=limit, offset=offset)
-    return SessionList(items=[SessionModel.of(v) for v in views], total=total)
+    return rendered(SessionList.model_construct(items=[session_model(v) for v in views], total=total))
 
 
 @router.post("/import", status_code=201, response_model=SessionModel, dependencies=[Depends(require_token)])
-async def import_session(request: Request) -> SessionModel:
+async def import_session(request: Request) -> Response:
     """Import a session from a zip written by ``/export.zip`` (or a zipped ``station export`` folder)."""
     data = await read_body(request, MAX_IMPORT_BYTES)
     service = service_of(request)
     row = await run_in_threadpool(service.import_zip, data, max_bytes=MAX_IMPORT_BYTES * 4)
-    return SessionModel.of(await run_in_threadpool(service.get_session, row.id))
+    return rendered(session_model(await run_in_threadpool(service.get_session, row.id)), 201)
 
 
 @router.get("/{session_id}", response_model=SessionModel, dependencies=[Depends(read_access)])
-async def get(request: Request, session_id: str) -> SessionModel:
-    return SessionModel.of(service_of(request).get_session(session_id))  # a quick read (see list_sessions)
+async def get(request: Request, session_id: str) -> Response:
+    return rendered(session_model(service_of(request).get_session(session_id)))  # quick (see list_sessions)
 
 
 @router.post(
@@ -61,22 +70,30 @@ async def get(request: Request, session_id: str) -> SessionModel:
     response_model=SessionModel,
     dependencies=[Depends(require_token)],
 )
-async def act(request: Request, session_id: str, body: ActionRequest) -> SessionModel:
+async def act(request: Request, session_id: str, body: ActionRequest) -> Response:
     """pause, resume (also continues an interrupted session), stop, abort; 409 when the state forbids it."""
-    return SessionModel.of(await run_in_threadpool(service_of(request).act, session_id, body.action))
+    view = await run_in_threadpool(service_of(request).act, session_id, body.action)
+    return rendered(session_model(view), 201)
 
 
-@router.get("/{session_id}/results", response_model=None, dependencies=[Depends(read_access)])
+@router.get(
+    "/{session_id}/results",
+    response_model=None,
+    dependencies=[Depends(read_access)],
+    responses={200: {"model": OutcomeModel, "content": {"text/csv": {}}}},
+)
 async def results(request: Request, session_id: str, format: Literal["json", "csv"] = "json") -> Any:
     """``station run --json``'s object; ``?format=csv``: the per-position (validation) or per-cycle
     (repeatability) table."""
-    doc = await run_in_threadpool(service_of(request).results, session_id)
+    outcome = await run_in_threadpool(service_of(request).results, session_id)
     if format == "json":
-        return OutcomeModel.model_validate(doc)
-    rows = table_rows(doc["kind"], doc["results"])
+        return rendered(outcome)
+    rows = table_rows(outcome.kind, outcome.results)
     if not rows:
         raise ApiError(
-            409, f"session {doc['id']} ({doc['kind']}, {doc['state']}) has no table of results", "no_table"
+            409,
+            f"session {outcome.id} ({outcome.kind}, {outcome.state}) has no table of results",
+            "no_table",
         )
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
@@ -85,7 +102,7 @@ async def results(request: Request, session_id: str, format: Literal["json", "cs
     return Response(
         buf.getvalue(),
         media_type="text/csv",
-        headers={"Content-Disposition": f'attachment; filename="{doc["id"]}-{doc["kind"]}.csv"'},
+        headers={"Content-Disposition": f'attachment; filename="{outcome.id}-{outcome.kind}.csv"'},
     )
 
 

@@ -11,7 +11,7 @@ from fastapi.responses import Response
 from api._auth import read_access, require_token
 from api._deps import service_of
 from api._errors import ApiError
-from api._models import Health, StationModel
+from api._models import Health, StationModel, rendered
 from station import __version__
 from station.imageio import DEFAULT_MAX_BYTES, ImageLimits
 from station.vision import MeasureParams
@@ -28,9 +28,9 @@ async def health() -> Health:
 
 
 @router.get("/station", response_model=StationModel, dependencies=[Depends(read_access)])
-async def station(request: Request) -> StationModel:
+async def station(request: Request) -> Response:
     """Configuration (secrets redacted), devices' identities and states from the cached snapshot."""
-    return StationModel.model_validate(service_of(request).station())
+    return rendered(StationModel.model_construct(**service_of(request).station()))
 
 
 @router.get(

@@ -8,15 +8,25 @@ its parameters the way ``station run`` does, and fans the runner's events out to
 Devices are built once (unconnected) when the service starts; the runner connects and closes them
 per session. While a session runs, the station's description comes from a cached snapshot: nothing
 here calls a robot method then.
+
+Reads are cheap while a session runs (clients poll; the runner shares the process and its GIL): the
+running session's row and the session list come from a cache that every ``state`` event of the runner
+invalidates (a row changes only with its state, and the list at most a second old for sessions another
+process imports), the station's description from a snapshot at most a second old, and the running
+session's events from an in-memory buffer of the events the runner reported (the record is read only
+for what the buffer does not hold).
 """
 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import io
 import logging
 import threading
+import time
 import zipfile
+from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -43,6 +53,7 @@ from station.record import (
     lock_holder,
     station_lock,
 )
+from station.resources import SessionOutcome
 from station.runner import (
     ACTIVE_STATES,
     FINAL_STATES,
@@ -57,6 +68,11 @@ from station.session import open_record, save_scale_calibration, session_measure
 from station.vision import MeasurementError, MeasureParams, measure
 
 log = logging.getLogger(__name__)
+
+CACHE_MAX_AGE_S = 1.0
+"""The longest a cached read lags behind the record (a session imported by another process)."""
+EVENT_BUFFER = 4096
+"""The running session's latest events kept in memory for its event streams."""
 
 ACTIONS = ("pause", "resume", "stop", "abort")
 
@@ -114,6 +130,14 @@ class StationService:
         self._listeners: list[Callable[[EventRow], None]] = []
         self._closed = False
         self._identities: dict[str, Any] = self.devices.identities() if self.devices is not None else {}
+        # the read caches (see the module's docstring): ``_generation`` counts the runner's state changes,
+        # session creations, imports and actions; a cached read is good while it is unchanged
+        self._generation = 0
+        self._row_cache: tuple[int, SessionRow] | None = None
+        self._list_cache: tuple[int, float, list[SessionRow]] | None = None
+        self._station_cache: tuple[tuple[Any, ...], float, dict[str, Any]] | None = None
+        self._config_snapshot: dict[str, Any] | None = None
+        self._recent: deque[EventRow] = deque(maxlen=EVENT_BUFFER)
         self.interrupted_at_start = self._reconcile()
 
     # ------------------------------------------------------------------ lifecycle
@@ -169,8 +193,15 @@ class StationService:
         return unsubscribe
 
     def _on_event(self, event: EventRow) -> None:
+        # the runner's thread, under the runner's lock: only quick, non-blocking work here
         if event.type == "connected":
             self._identities = dict(event.data.get("devices", {}))
+        elif event.type == "state":
+            self._generation += 1
+        recent = self._recent
+        if recent and recent[-1].session_id != event.session_id:
+            recent.clear()
+        recent.append(event)
         with self._lock:
             listeners = list(self._listeners)
         for listener in listeners:
@@ -185,7 +216,33 @@ class StationService:
 
     def events_after_seq(self, session_id: str, after_seq: int, *, limit: int = 500) -> list[EventRow]:
         """A session's events with ``seq > after_seq`` (its stream resumes by sequence number)."""
+        buffered = self.buffered_events(session_id, after_seq, limit=limit)
+        if buffered is not None:
+            return buffered
         return self.record.events(session_id, after_seq=after_seq, limit=limit)
+
+    def buffered_events(self, session_id: str, after_seq: int, *, limit: int = 500) -> list[EventRow] | None:
+        """The events with ``seq > after_seq`` from the in-memory buffer of this process's latest session,
+        or None when the buffer cannot tell (another session, or events older than the buffer's first).
+        No database read: the event streams call this on the event loop."""
+        # tuple() copies the deque in one step under the GIL (the runner's thread appends meanwhile)
+        snapshot = tuple(self._recent)
+        if not snapshot or snapshot[0].session_id != session_id:
+            return None
+        start = after_seq + 1 - snapshot[0].seq
+        if start < 0:
+            return None
+        out = list(snapshot[start : start + limit])
+        if out and out[0].seq != after_seq + 1:  # the buffer is contiguous; if not, ask the record
+            return None
+        return out
+
+    def session_ended(self, session_id: str) -> bool | None:
+        """Whether this process's runner of ``session_id`` has ended (None: not this process's session)."""
+        runner = self._runner
+        if runner is None or runner.session_id != session_id:
+            return None
+        return runner.state in FINAL_STATES
 
     # ------------------------------------------------------------------ the station
 
@@ -195,9 +252,22 @@ class StationService:
         return runner if runner is not None and runner.state not in FINAL_STATES else None
 
     def station(self) -> dict[str, Any]:
-        """Configuration (secrets redacted), each device's identity and state; never touches a device."""
+        """Configuration (secrets redacted), each device's identity and state; never touches a device.
+        At most a second old (the station lock's holder, read from its file)."""
         runner = self.running
+        key = (id(runner), runner.state if runner is not None else None, id(self._identities))
+        cached = self._station_cache
+        now = time.monotonic()
+        if cached is not None and cached[0] == key and now - cached[1] < CACHE_MAX_AGE_S:
+            return cached[2]
+        doc = self._station(runner)
+        self._station_cache = (key, now, doc)
+        return doc
+
+    def _station(self, runner: SessionRunner | None) -> dict[str, Any]:
         config = self.devices.config if self.devices is not None else self.config
+        if self._config_snapshot is None and config is not None:
+            self._config_snapshot = config.snapshot()
         busy = runner is not None
         devices: dict[str, Any] = {}
         for name in ("robot", "camera", "table"):
@@ -213,7 +283,7 @@ class StationService:
             "name": config.name if config is not None else "offline",
             "sim": self.settings.sim,
             "manual_prompts": self.settings.manual_prompts,
-            "config": config.snapshot() if config is not None else None,
+            "config": self._config_snapshot,
             "devices": devices,
             "data_dir": str(self.record.data_dir),
             "record": self.record.url,
@@ -365,6 +435,7 @@ class StationService:
             unsubscribe = runner.subscribe(on_event)
             runner.create()
             self._runner = runner
+            self._generation += 1
             thread = threading.Thread(target=self._run, args=(runner,), name="service-session", daemon=True)
             self._thread = thread
             thread.start()
@@ -403,15 +474,51 @@ class StationService:
         return not thread.is_alive()
 
     def list_sessions(self, *, limit: int, offset: int) -> tuple[list[SessionView], int]:
-        rows = self.record.list_sessions()
+        rows = self._session_rows()
         return [self._view(r) for r in rows[offset : offset + limit]], len(rows)
 
+    def _session_rows(self) -> list[SessionRow]:
+        """The record's sessions; while this process runs one, from a cache that its state changes
+        invalidate (and at most a second old: another process may import a session meanwhile)."""
+        if self.running is None:
+            self._list_cache = None
+            return self.record.list_sessions()
+        generation, now = self._generation, time.monotonic()
+        cached = self._list_cache
+        if cached is not None and cached[0] == generation and now - cached[1] < CACHE_MAX_AGE_S:
+            return cached[2]
+        rows = self.record.list_sessions()
+        if self._generation == generation:  # no state change while reading: the rows are current
+            self._list_cache = (generation, now, rows)
+        return rows
+
     def get_session(self, session_id: str) -> SessionView:
-        return self._view(self.record.get_session(session_id))
+        return self._view(self._session_row(session_id))
+
+    def _session_row(self, session_id: str) -> SessionRow:
+        """The record's row; the running session's from a cache its state changes invalidate (its row
+        changes only with its state while it runs)."""
+        runner = self.running
+        if runner is None or runner.session_id != session_id:
+            return self.record.get_session(session_id)
+        generation = self._generation
+        cached = self._row_cache
+        if cached is not None and cached[0] == generation and cached[1].id == session_id:
+            return cached[1]
+        row = self.record.get_session(session_id)
+        if self._generation == generation and self.running is runner:
+            self._row_cache = (generation, row)
+        return row
 
     def _view(self, row: SessionRow) -> SessionView:
         runner = self._runner
         if runner is not None and runner.session_id == row.id:
+            state = runner.state
+            if state not in FINAL_STATES and row.state != state:
+                # the runner's state is set (in memory, under its lock) before the record's: a client that
+                # sees the prompt it raised finds the session awaiting the operator; a final state comes
+                # from the record, with its error
+                row = dataclasses.replace(row, state=str(state))
             return SessionView(row, runner.progress())
         done = (
             len([s for s in self.record.steps(row.id) if s.state == "done"])
@@ -431,6 +538,8 @@ class StationService:
                 getattr(runner, action)()
             except SessionError as exc:
                 raise ConflictError(str(exc)) from exc
+            finally:
+                self._generation += 1
             return self.get_session(row.id)
         if action == "resume" and row.state in (
             RunnerState.INTERRUPTED,
@@ -490,15 +599,9 @@ class StationService:
 
     # ------------------------------------------------------------------ results, reports, export
 
-    def results(self, session_id: str) -> dict[str, Any]:
-        row = self.record.get_session(session_id)
-        return {
-            "id": row.id,
-            "kind": row.kind,
-            "state": row.state,
-            "results": row.results or {},
-            "error": row.error,
-        }
+    def results(self, session_id: str) -> SessionOutcome:
+        """``station run --json``'s object for the session."""
+        return SessionOutcome.of(self.record.get_session(session_id))
 
     def report_dir(self, session_id: str) -> Path:
         """The session's report folder, written now if absent or older than the session's last change."""
@@ -551,7 +654,9 @@ class StationService:
                 raise ImportArchiveError(
                     f"the archive must hold one exported session (one session.json), found {len(folders)}"
                 )
-            return self.record.import_session(folders[0])
+            row = self.record.import_session(folders[0])
+            self._generation += 1
+            return row
 
 
 def measurement_names(values: Mapping[str, Any]) -> dict[str, Any]:

@@ -15,7 +15,6 @@ import logging
 import os
 import threading
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +30,7 @@ from station.config import (
 from station.config import open_station as build_station
 from station.plans import PlanError, get_plan, parse_params
 from station.record import EventRow, Record, SessionRow
+from station.resources import SessionOutcome
 from station.runner import SessionError, SessionRunner
 from station.vision import MeasureParams
 
@@ -38,26 +38,6 @@ log = logging.getLogger(__name__)
 
 DEFAULT_DATA_DIR = "station-data"
 DATA_ENV = "STATION_DATA"
-
-
-@dataclass(frozen=True)
-class SessionOutcome:
-    """The ``station run --json`` object: ``{"id", "kind", "state", "results"}`` (and the error)."""
-
-    id: str
-    kind: str
-    state: str
-    results: dict[str, Any]
-    error: str | None = None
-
-    def to_json(self) -> dict[str, Any]:
-        return {
-            "id": self.id,
-            "kind": self.kind,
-            "state": self.state,
-            "results": self.results,
-            "error": self.error,
-        }
 
 
 def data_dir_for(data: str | Path | None, config: StationConfig | None = None) -> Path:
@@ -199,7 +179,7 @@ def run_session(
         assert runner.session_id is not None
         row = record.get_session(runner.session_id)
         save_scale_calibration(record, row)
-        return SessionOutcome(row.id, row.kind, row.state, row.results or {}, row.error)
+        return SessionOutcome.of(row)
     finally:
         record.close()
 

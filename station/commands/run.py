@@ -22,6 +22,7 @@ from station.config import ConfigurationError
 from station.devices import DeviceError
 from station.plans import PLAN_NAMES, PlanError
 from station.record import EventRow, RecordError, SessionLockError
+from station.resources import dumps
 from station.runner import SessionError, SessionRunner
 from station.scale_calibration import ScaleCalibrationError
 from station.session import run_session
@@ -192,7 +193,7 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         except (RecordError, OSError) as exc:
             print(f"station run: the report could not be written: {exc}", file=sys.stderr)
     if args.json:
-        print(json.dumps(outcome.to_json()))
+        print(dumps(outcome))
     else:
         print(f"session {outcome.id} ({outcome.kind}): {outcome.state}")
         if outcome.error:

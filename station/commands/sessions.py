@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -12,6 +11,7 @@ from station.commands import SubParsers
 from station.commands.run import add_record_options
 from station.record import Record, RecordError, SessionRow, lock_holder
 from station.reporting import ReportError
+from station.resources import SessionSummary, dumps
 from station.session import open_record
 
 if TYPE_CHECKING:
@@ -19,19 +19,9 @@ if TYPE_CHECKING:
 
 
 def session_json(row: SessionRow) -> dict[str, Any]:
-    """The session object of ``station sessions --json`` (and of the API)."""
-    return {
-        "id": row.id,
-        "kind": row.kind,
-        "state": row.state,
-        "created_at": row.created_at.isoformat(),
-        "updated_at": row.updated_at.isoformat(),
-        "station": row.station,
-        "parent_id": row.parent_id,
-        "error": row.error,
-        "params": row.params,
-        "results": row.results,
-    }
+    """The session object of ``station sessions --json``: :class:`station.resources.SessionSummary`
+    (the API's session resource is the same model with the live progress)."""
+    return SessionSummary.of(row).model_dump()
 
 
 def register(sub: SubParsers) -> None:
@@ -91,7 +81,7 @@ def run_sessions(args: argparse.Namespace) -> int:
         print(f"station sessions: {exc}", file=sys.stderr)
         return 1
     if args.json:
-        print(json.dumps([session_json(r) for r in rows]))
+        print(dumps([SessionSummary.of(r) for r in rows]))
         return 0
     from station.report import table
 

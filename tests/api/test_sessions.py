@@ -4,7 +4,13 @@ from __future__ import annotations
 
 import csv
 import io
+import json
+from pathlib import Path
 
+import pytest
+
+from station.cli import main
+from station.resources import SessionOutcome, SessionResource, dumps
 from tests.api.conftest import Served, wait_final, wait_state
 
 SHORT = {"kind": "repeatability", "params": {"cycles": 3, "joints": [1], "warmup_cycles": 0}}
@@ -199,3 +205,22 @@ def test_out_of_limit_targets_are_refused_before_anything_moves(served: Served) 
         assert "nothing moved" in body["detail"]
         assert c.get("/api/v1/station").json()["session"] is None
     assert list(twin.arm.actual_exact()) == before
+
+
+def test_the_cli_and_the_api_render_one_session_model(
+    served: Served, data_dir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``station sessions --json`` lists the API's session resource without its live progress (one
+    model, station.resources, two renderings); ``/results`` is ``station run --json``'s object."""
+    with served.client() as c:
+        sid = c.post("/api/v1/sessions", json=SHORT).json()["id"]
+        wait_final(c, sid)
+        resource = c.get(f"/api/v1/sessions/{sid}").json()
+        results = c.get(f"/api/v1/sessions/{sid}/results").json()
+    assert main(["sessions", "--json", "--data", str(data_dir)]) == 0
+    (listed,) = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert set(resource) - set(listed) == {"progress"}
+    assert listed == {k: v for k, v in resource.items() if k != "progress"}
+    row = served.service.record.get_session(sid)
+    assert json.loads(dumps(SessionOutcome.of(row))) == results
+    assert SessionResource.model_validate(resource).id == sid  # the API's body is the model's

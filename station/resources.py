@@ -1,0 +1,116 @@
+"""The session objects the station shows: one pydantic model each, rendered by the CLI's ``--json`` and
+by the service's API (``api/``) alike.
+
+* :class:`SessionSummary`: a session as ``station sessions --json`` lists it (the record's row without
+  its configuration, identities and software);
+* :class:`SessionResource`: the API's session resource, the summary plus the live ``progress``
+  (``{"done", "total", "eta_s"}``) and ``results`` always an object (``{}`` before there are any);
+* :class:`SessionOutcome`: ``station run --json``'s object, ``{"id", "kind", "state", "results",
+  "error"}``, which is also ``GET /api/v1/sessions/{id}/results``.
+
+The keys are a contract (scripts read them): change them only with the CLI's and the API's docs.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from station.record import SessionRow
+from station.runner import Progress, RunnerState
+
+
+class ProgressModel(BaseModel):
+    """A session's progress: steps done of the plan's total, and the estimated time left (s)."""
+
+    model_config = ConfigDict(frozen=True)
+
+    done: int = Field(ge=0)
+    total: int = Field(ge=0)
+    eta_s: float | None = None
+
+    @classmethod
+    def of(cls, progress: Progress) -> ProgressModel:
+        return cls.model_construct(done=progress.done, total=progress.total, eta_s=progress.eta_s)
+
+
+class SessionSummary(BaseModel):
+    """A recorded session: ``station sessions --json``'s object."""
+
+    id: str
+    kind: str
+    state: RunnerState
+    created_at: str = Field(description="ISO 8601, UTC")
+    updated_at: str = Field(description="ISO 8601, UTC")
+    station: str
+    parent_id: str | None
+    error: str | None
+    params: dict[str, Any]
+    results: dict[str, Any] | None
+
+    @classmethod
+    def fields_of(cls, row: SessionRow) -> dict[str, Any]:
+        return {
+            "id": row.id,
+            "kind": row.kind,
+            "state": RunnerState(row.state),
+            "created_at": row.created_at.isoformat(),
+            "updated_at": row.updated_at.isoformat(),
+            "station": row.station,
+            "parent_id": row.parent_id,
+            "error": row.error,
+            "params": row.params,
+            "results": row.results,
+        }
+
+    @classmethod
+    def of(cls, row: SessionRow) -> SessionSummary:
+        # the row comes from the record (already checked on the way in): built without re-validating the
+        # params and results trees, which the service renders on every poll
+        return cls.model_construct(**cls.fields_of(row))
+
+
+class SessionResource(SessionSummary):
+    """The API's session resource: the summary, its results always an object, and the live progress."""
+
+    results: dict[str, Any]
+    progress: ProgressModel
+
+    @classmethod
+    def of_row(cls, row: SessionRow, progress: Progress) -> SessionResource:
+        fields = cls.fields_of(row)
+        fields["results"] = fields["results"] or {}
+        return cls.model_construct(**fields, progress=ProgressModel.of(progress))
+
+
+class SessionOutcome(BaseModel):
+    """How a session ended (or stands): ``station run --json``'s object."""
+
+    id: str
+    kind: str
+    state: RunnerState
+    results: dict[str, Any]
+    error: str | None = None
+
+    @classmethod
+    def of(cls, row: SessionRow) -> SessionOutcome:
+        return cls.model_construct(
+            id=row.id, kind=row.kind, state=RunnerState(row.state), results=row.results or {}, error=row.error
+        )
+
+    def to_json(self) -> dict[str, Any]:
+        """The object as ``json.dumps`` takes it (what ``--json`` prints)."""
+        return self.model_dump()
+
+
+def dumps(model: BaseModel | list[Any]) -> str:
+    """The CLI's rendering of a model (or a list of them): one line of JSON, as ``json.dumps`` writes it
+    (the state enum is a string; a NaN in a result prints as ``NaN``, as it always has)."""
+    if isinstance(model, list):
+        return json.dumps([m.model_dump() if isinstance(m, BaseModel) else m for m in model])
+    return json.dumps(model.model_dump())
+
+
+__all__ = ["ProgressModel", "SessionOutcome", "SessionResource", "SessionSummary", "dumps"]
