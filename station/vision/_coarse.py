@@ -82,6 +82,14 @@ def _power_tables(shape: tuple[int, int]) -> tuple[FloatArray, FloatArray]:
 
 
 @lru_cache(maxsize=8)
+def _row_coordinate(shape: tuple[int, int]) -> FloatArray:
+    """Every row's normalised coordinate, (h,) C-contiguous (``_power_tables``'s row 1 of y)."""
+    yn = np.ascontiguousarray(_power_tables(shape)[1][1])
+    yn.setflags(write=False)
+    return yn
+
+
+@lru_cache(maxsize=8)
 def _small_basis(small_shape: tuple[int, int], shape: tuple[int, int], scale: int) -> FloatArray:
     """Flat-field polynomial terms at the reduced image's pixel centres, (terms, sh*sw)."""
     xf, yf = _centred_grid(small_shape, shape, scale)
@@ -117,10 +125,15 @@ class Illumination:
             value = value * yn + coef[j][x]
         return np.asarray(value, np.float64)
 
+    def pixel_tables(self) -> tuple[FloatArray, FloatArray]:
+        """What ``at_pixels`` evaluates, for the compiled kernel: per column x the coefficients of
+        y^0..y^d, (d+1, w), and every row's normalised y, (h,), both C-contiguous float64."""
+        return self._column_coef, _row_coordinate(self.shape)
+
     @cached_property
     def _column_coef(self) -> FloatArray:
         """(d+1, w): per image column x, the coefficients of y^0..y^d: sum_i coef[i, j] xn^i."""
-        return np.asarray(self._grid.T @ _power_tables(self.shape)[0], np.float64)
+        return np.ascontiguousarray(self._grid.T @ _power_tables(self.shape)[0], np.float64)
 
     @cached_property
     def _grid(self) -> FloatArray:

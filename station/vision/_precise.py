@@ -37,6 +37,7 @@ from station.vision._edges import EDGES, Edge
 from station.vision._errors import EdgeNotFoundError, describe_missing
 from station.vision._geometry import VERTICAL
 from station.vision._image import Gray8
+from station.vision._kernels import compiled
 from station.vision._params import MeasureParams
 from station.vision._result import EdgeFit
 
@@ -46,7 +47,7 @@ FloatArray = npt.NDArray[np.float64]
 #: Edge order of every per-edge array below: EDGES (top, bottom, left, right); left and right are vertical.
 _VERTICAL = np.array([e in VERTICAL for e in EDGES])
 #: +1 where the intensity rises across the edge in the scan direction (+y or +x), -1 where it falls.
-_POLARITY = np.array([-1.0, 1.0, -1.0, 1.0], np.float32)
+_POLARITY = np.array([-1.0, 1.0, -1.0, 1.0])
 _ROWS = np.arange(len(EDGES))
 
 
@@ -106,22 +107,22 @@ def _profile_grid(
 
 
 @lru_cache(maxsize=16)
-def _moment_weights(n: int) -> npt.NDArray[np.float32]:
+def _moment_weights(n: int) -> FloatArray:
     """(2, n): ones and the positions 0.5 ... n - 0.5: the sum and first moment of n differences."""
-    weights = np.vstack([np.ones(n), np.arange(n) + 0.5]).astype(np.float32)
+    weights = np.vstack([np.ones(n), np.arange(n) + 0.5])
     weights.setflags(write=False)
     return weights
 
 
 @lru_cache(maxsize=16)
-def _ramp(n: int) -> npt.NDArray[np.float32]:
+def _ramp(n: int) -> FloatArray:
     """(n, 1) from 0 to 1: linear interpolation weights across a window of n samples."""
-    ramp = np.linspace(0.0, 1.0, n, dtype=np.float32)[:, None]
+    ramp = np.linspace(0.0, 1.0, n)[:, None]
     ramp.setflags(write=False)
     return ramp
 
 
-def _suppress_impulses(samples: npt.NDArray[np.float32], threshold: float) -> None:
+def _suppress_impulses(samples: FloatArray, threshold: float) -> None:
     """Replace isolated impulses (salt-and-pepper, hot pixels) in profiles across an edge, in place
     (``samples``: (sample, profile)).
 
@@ -169,8 +170,65 @@ def _profile_points(
 
     Profile i runs across edge ``owner[i]`` at ``along[i]`` (a column for horizontal edges, a row for
     vertical ones), in a window of ``2 * half + 2`` samples about the predicted position ``mu[i]``.
-    Profiles whose window does not fit inside the image are dropped.
+    Profiles whose window does not fit inside the image are dropped. The compiled kernel
+    (``_kernels``) when selected, else the numpy reference below.
     """
+    ck = compiled()
+    if ck is None:
+        return _profile_points_numpy(
+            img,
+            along=along,
+            owner=owner,
+            mu=mu,
+            half=half,
+            impulse_dn=impulse_dn,
+            illumination=illumination,
+            with_spread=with_spread,
+        )
+    n_all = along.size
+    index = np.empty(n_all, np.int64)
+    across, strength, spread = np.empty(n_all), np.empty(n_all), np.empty(n_all)
+    colcoef = yn = None
+    if illumination is not None:
+        colcoef, yn = illumination.pixel_tables()
+    kept = ck.profiles(
+        img,
+        np.ascontiguousarray(along, np.int64),
+        np.ascontiguousarray(owner, np.int64),
+        np.ascontiguousarray(mu, np.float64),
+        half,
+        float(impulse_dn),
+        colcoef,
+        yn,
+        _ramp(2 * half + 2),
+        with_spread,
+        index,
+        across,
+        strength,
+        spread,
+    )
+    index = index[:kept]
+    return _Profiles(
+        owner[index],
+        along[index].astype(np.float64),
+        across[:kept],
+        strength[:kept],
+        spread[:kept] if with_spread else None,
+    )
+
+
+def _profile_points_numpy(
+    img: npt.NDArray[np.uint8] | npt.NDArray[np.float32],
+    *,
+    along: npt.NDArray[np.intp],
+    owner: npt.NDArray[np.intp],
+    mu: FloatArray,
+    half: int,
+    impulse_dn: float,
+    illumination: Illumination | None = None,
+    with_spread: bool = True,
+) -> _Profiles:
+    """``_profile_points`` in numpy: the reference the compiled kernel is tested against."""
     h, w = img.shape
     n = 2 * half + 2
     vertical = _VERTICAL[owner]
@@ -190,35 +248,31 @@ def _profile_points(
     start = np.where(vertical, along * w + base, base * w + along)
     stride = np.where(vertical, 1, w)
     flat = start[None, :] + np.arange(n)[:, None] * stride[None, :]
-    samples = np.take(img, flat).astype(np.float32)
+    samples = np.take(img, flat).astype(np.float64)
     if illumination is not None:
         # flat field: the illumination is smooth, linear over one window: divide the samples by it,
         # evaluated at the window's two ends (whole pixels)
         end = base + (n - 1)
         xs = np.concatenate([np.where(vertical, base, along), np.where(vertical, end, along)])
         ys = np.concatenate([np.where(vertical, along, base), np.where(vertical, along, end)])
-        v32 = illumination.at_pixels(xs, ys).astype(np.float32).reshape(2, -1)
-        samples /= v32[0][None, :] + (v32[1] - v32[0])[None, :] * _ramp(n)
+        v = illumination.at_pixels(xs, ys).reshape(2, -1)
+        samples /= v[0][None, :] + (v[1] - v[0])[None, :] * _ramp(n)
     _suppress_impulses(samples, impulse_dn)
     d = samples[1:] - samples[:-1]
     # The window of differences is exactly symmetric about mu: 2 half + 1 differences at positions
     # 0.5 ... 2 half + 0.5 from the first sample, the two end ones weighted by the fractions of their
     # pixels inside (1 - f and f, f = mu - floor(mu)), the others fully. The polarity cancels in the
     # centroid and the spread; only the strength takes its sign.
-    frac = (mu - np.floor(mu)).astype(np.float32)
+    frac = mu - np.floor(mu)
     d[0] *= 1.0 - frac
     d[-1] *= frac
-    pos = np.arange(n - 1, dtype=np.float32) + np.float32(0.5)
+    pos = np.arange(n - 1) + 0.5
     moments = _moment_weights(n - 1) @ d  # (sum, sum of positions): one pass over the differences
-    raw = moments[0].astype(np.float64)
+    raw = moments[0]
     strength = raw * _POLARITY[owner]
     safe = np.where(strength > 0, raw, 1.0)
-    rel = moments[1].astype(np.float64) / safe
-    spread = (
-        ((d * (pos[:, None] - rel[None, :].astype(np.float32)) ** 2).sum(axis=0) / safe)
-        if with_spread
-        else None
-    )
+    rel = moments[1] / safe
+    spread = ((d * (pos[:, None] - rel[None, :]) ** 2).sum(axis=0) / safe) if with_spread else None
     return _Profiles(owner, along.astype(np.float64), base + rel, strength, spread)
 
 
@@ -279,8 +333,83 @@ def _fit_edges(
     """The four edges' lines from their profiles (module docstring, step 3), all edges at once.
 
     Returns (fits on the last pass, new models, median line spread, problems: per edge the reason it
-    was not found).
+    was not found). The compiled kernel (``_kernels``) when selected, else the numpy reference below.
     """
+    ck = compiled()
+    if ck is None:
+        return _fit_edges_numpy(p, models, params, half=half, last=last)
+    n_all = p.owner.size
+    inliers = np.empty(n_all, np.bool_)
+    stats = np.empty((9, len(EDGES)))
+    stages, spread = ck.fit(
+        np.ascontiguousarray(p.owner, np.int64),
+        p.along,
+        p.across,
+        p.strength,
+        p.spread,
+        np.ascontiguousarray(models.slope, np.float64),
+        np.ascontiguousarray(models.intercept, np.float64),
+        half,
+        last,
+        params.min_edge_points,
+        params.min_contrast_dn,
+        params.min_contrast_fraction,
+        params.outlier_sigma,
+        params.residual_limit_px,
+        inliers,
+        stats,
+    )
+    counts, contrast, n_good, n_in, rms, la, lb, lc = (row.tolist() for row in stats[:8])
+    problems: dict[Edge, str] = {}
+    for i, stage in enumerate(stages):
+        if stage:
+            problems[EDGES[i]] = _failure(
+                stage, params, count=int(counts[i]), contrast=contrast[i], good=int(n_good[i]), rms=rms[i]
+            )
+    fits: dict[Edge, EdgeFit] = {}
+    if last and not problems:
+        vertical = _VERTICAL[p.owner]
+        x, y = np.where(vertical, p.across, p.along), np.where(vertical, p.along, p.across)
+        points = np.split(np.column_stack([x[inliers], y[inliers]]), np.cumsum(n_in[:-1]).astype(np.intp))
+        for i, edge in enumerate(EDGES):
+            used = int(n_in[i])
+            fits[edge] = EdgeFit(
+                name=edge,
+                line=(la[i], lb[i], lc[i]),
+                segmented=int(counts[i]),
+                used=used,
+                removed=int(counts[i]) - used,
+                rms_px=rms[i],
+                points=points[i],
+            )
+    a, b, c = stats[5], stats[6], stats[7]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        slope = np.where(_VERTICAL, -b / a, -a / b)
+        intercept = np.where(_VERTICAL, c / a, c / b)
+    return fits, _Models(slope, intercept), spread, problems
+
+
+def _failure(stage: int, params: MeasureParams, *, count: int, contrast: float, good: int, rms: float) -> str:
+    """Why an edge was not found, by the first test it failed (``_ckernels.fit``'s stage numbers; the
+    same sentences as ``_fit_edges_numpy``'s)."""
+    if stage == 1:
+        return (
+            f"only {count} of its profiles fit inside the frame (at least {params.min_edge_points}): "
+            "it runs too close to the border; keep the groove corners 10 px or more inside the frame"
+        )
+    if stage == 2:
+        return f"its contrast is {contrast:.1f} DN (at least {params.min_contrast_dn} DN)"
+    if stage == 3:
+        return f"only {good} profiles show the edge"
+    if stage == 4:
+        return "its points do not lie on a line"
+    return f"its points are not on a line (rms {rms:.2f} px)"
+
+
+def _fit_edges_numpy(
+    p: _Profiles, models: _Models, params: MeasureParams, *, half: int, last: bool
+) -> tuple[dict[Edge, EdgeFit], _Models, float | None, dict[Edge, str]]:
+    """``_fit_edges`` in numpy: the reference the compiled kernel is tested against."""
     groups = _Groups(p.owner)
     owner, t, a = p.owner, p.along, p.across
     problems: dict[Edge, str] = {}
