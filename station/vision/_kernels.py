@@ -23,6 +23,7 @@ from typing import Literal
 Choice = Literal["auto", "c", "numpy"]
 ENV = "STATION_VISION_KERNELS"
 
+_built: ModuleType | None
 try:
     from station.vision import _ckernels as _built
 except ImportError as exc:  # not built (no compiler at install time): the numpy reference runs

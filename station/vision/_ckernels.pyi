@@ -1,0 +1,41 @@
+"""Type stub of the compiled kernels (``_ckernels.c``); ``_kernels`` chooses between them and numpy."""
+
+import numpy as np
+import numpy.typing as npt
+
+def profiles(
+    img: npt.NDArray[np.uint8] | npt.NDArray[np.float32],
+    along: npt.NDArray[np.int64],
+    owner: npt.NDArray[np.int64],
+    mu: npt.NDArray[np.float64],
+    half: int,
+    impulse_dn: float,
+    colcoef: npt.NDArray[np.float64] | None,
+    yn: npt.NDArray[np.float64] | None,
+    ramp: npt.NDArray[np.float64],
+    with_spread: bool,
+    out_index: npt.NDArray[np.int64],
+    out_across: npt.NDArray[np.float64],
+    out_strength: npt.NDArray[np.float64],
+    out_spread: npt.NDArray[np.float64],
+    /,
+) -> int: ...
+def fit(
+    owner: npt.NDArray[np.int64],
+    along: npt.NDArray[np.float64],
+    across: npt.NDArray[np.float64],
+    strength: npt.NDArray[np.float64],
+    spread: npt.NDArray[np.float64] | None,
+    slope: npt.NDArray[np.float64],
+    intercept: npt.NDArray[np.float64],
+    half: int,
+    last: bool,
+    min_edge_points: int,
+    min_contrast_dn: float,
+    min_contrast_fraction: float,
+    outlier_sigma: float,
+    residual_limit_px: float,
+    out_inliers: npt.NDArray[np.bool_],
+    out_stats: npt.NDArray[np.float64],
+    /,
+) -> tuple[tuple[int, int, int, int], float | None]: ...

@@ -1,0 +1,130 @@
+"""The compiled kernels (``station/vision/_ckernels.c``) against the numpy reference (issue 12).
+
+The numpy code stays the reference: on the benchmark's image sets both give the same results within
+1e-9 px (centre, corners, lines), the same points in every fit and the same errors, word for word.
+Paper mode's results are pinned for both in ``test_paper_reference``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose, assert_array_equal
+
+from station.imageio import read_image
+from station.vision import EDGES, MeasurementError, MeasureParams, measure
+from station.vision._kernels import ENV, available, compiled, kernels, use_kernels
+from tests.vision.conftest import Render, paper_reference
+
+TOL_PX = 1e-9
+
+
+def test_the_install_built_the_compiled_kernels() -> None:
+    # `make setup` builds them (gcc and the Python headers are part of the set-up); without them the
+    # numpy reference would run and this file would test nothing
+    assert available(), "station/vision/_ckernels was not built: run `make setup` (needs gcc)"
+    with kernels("c"):
+        assert compiled() is not None
+    with kernels("numpy"):
+        assert compiled() is None
+
+
+def test_the_choice_is_checked_and_restored() -> None:
+    before = compiled()
+    with pytest.raises(ValueError, match=ENV):
+        use_kernels("fortran")
+    with kernels("numpy"):
+        assert compiled() is None
+    assert compiled() is before
+
+
+def _both(image: np.ndarray, params: MeasureParams) -> dict[str, object]:
+    out: dict[str, object] = {}
+    for kernel in ("numpy", "c"):
+        with kernels(kernel):
+            try:
+                out[kernel] = measure(image, params)
+            except MeasurementError as exc:
+                out[kernel] = f"{exc.code}: {exc}"
+    return out
+
+
+def _assert_same(out: dict[str, object], name: str) -> None:
+    ref, got = out["numpy"], out["c"]
+    if isinstance(ref, str) or isinstance(got, str):
+        assert got == ref, name
+        return
+    assert_allclose(got.center_px, ref.center_px, rtol=0, atol=TOL_PX, err_msg=name)  # type: ignore[attr-defined]
+    assert_allclose(got.corners_px, ref.corners_px, rtol=0, atol=TOL_PX, err_msg=name)  # type: ignore[attr-defined]
+    assert_allclose(got.lines, ref.lines, rtol=0, atol=TOL_PX, err_msg=name)  # type: ignore[attr-defined]
+    for e in EDGES:
+        a, b = got.edges[e], ref.edges[e]  # type: ignore[attr-defined]
+        assert (a.segmented, a.used, a.removed) == (b.segmented, b.used, b.removed), f"{name} {e}"
+        assert_allclose(a.points, b.points, rtol=0, atol=TOL_PX, err_msg=f"{name} {e}")
+        assert a.rms_px == pytest.approx(b.rms_px, rel=1e-9)
+
+
+@pytest.mark.skipif(not available(), reason="the compiled kernels were not built")
+@pytest.mark.parametrize("set_name", list(paper_reference()["sets"]))
+def test_precise_kernels_equal_the_numpy_reference_on_the_benchmark(bench_sets: Path, set_name: str) -> None:
+    params = MeasureParams()
+    files = sorted((bench_sets / set_name).glob("*.png"))
+    assert files
+    for f in files:
+        _assert_same(_both(read_image(f), params), f"{set_name}/{f.name}")
+
+
+@pytest.mark.skipif(not available(), reason="the compiled kernels were not built")
+def test_precise_kernels_equal_the_reference_with_every_option(rendered: Render) -> None:
+    image, _ = rendered(300.0, 250.0, preset="hard", rotation_deg=7.0, seed=5)
+    k = [[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]]
+    for params in (
+        MeasureParams(flat_field=False),
+        MeasureParams(window_px=5, passes=3, profile_step=2),
+        MeasureParams(camera_matrix=k, dist_coeffs=[-0.05, 0.01, 0.0, 0.0]),  # float32 samples
+    ):
+        _assert_same(_both(image, params), str(params))
+
+
+@pytest.mark.skipif(not available(), reason="the compiled kernels were not built")
+def test_precise_kernels_fail_as_the_reference_does(rendered: Render) -> None:
+    image, _ = rendered(320.0, 240.0, seed=2)
+    cases = {
+        # the right land painted as dark as the groove: that edge has no contrast
+        "no right edge": np.where(np.arange(640)[None, :] > 360, 40, image).astype(np.uint8),
+        # the cross so close to the frame's top that the top edge's profiles leave it
+        "at the border": np.ascontiguousarray(image[200:, :]),
+        "flat": np.full((480, 640), 128, np.uint8),
+    }
+    for name, img in cases.items():
+        out = _both(img, MeasureParams())
+        assert isinstance(out["numpy"], str), name  # each of these is a failure
+        _assert_same(out, name)
+
+
+def test_the_profiles_kernel_drops_the_windows_the_reference_drops() -> None:
+    """Windows leaving the frame: the same kept profiles, in the same order."""
+    if not available():
+        pytest.skip("the compiled kernels were not built")
+    from station.vision._precise import _profile_points
+
+    rng = np.random.default_rng(1)
+    img = (rng.random((120, 160)) * 255).astype(np.uint8)
+    along = np.array([5, 50, 100, 150, 5, 60, 110, 10, 60, 100], np.intp)
+    owner = np.array([0, 0, 0, 1, 1, 1, 2, 2, 3, 3], np.intp)
+    mu = np.array([3.0, 60.5, 116.2, 40.0, -2.0, 80.9, 150.1, 157.9, 20.25, 80.0])
+    res = {}
+    for kernel in ("numpy", "c"):
+        with kernels(kernel):
+            res[kernel] = _profile_points(img, along=along, owner=owner, mu=mu, half=4, impulse_dn=25.0)
+    a, b = res["c"], res["numpy"]
+    assert_array_equal(a.owner, b.owner)
+    assert_array_equal(a.along, b.along)
+    assert_allclose(a.across, b.across, rtol=0, atol=1e-12)
+    assert_allclose(a.strength, b.strength, rtol=1e-12)
+    assert a.spread is not None
+    assert b.spread is not None
+    assert_allclose(a.spread, b.spread, rtol=1e-9, atol=1e-12)
+    assert a.owner.size < owner.size  # some windows left the frame
