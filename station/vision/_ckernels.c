@@ -99,92 +99,53 @@ static const int VERTICAL[N_EDGES] = {0, 0, 1, 1};
 static const double POLARITY[N_EDGES] = {-1.0, 1.0, -1.0, 1.0};
 #define MAX_WINDOW 64
 
-/* profiles(img, along, owner, mu, half, impulse_dn, colcoef, yn, ramp, with_spread,
- *          out_index, out_across, out_strength, out_spread) -> kept
- *
- * _precise._profile_points for every profile: profile i (edge owner[i], column/row along[i]) in a
- * window of n = 2 half + 2 samples from floor(mu[i]) - half. Profiles whose window leaves the image
- * are dropped; the kept ones are written in order, out_index giving each one's input index.
- * img: 2-D uint8 or float32; colcoef: (deg+1, w) float64 and yn: (h,) float64, or None (no flat
- * field); ramp: (n,) float64. */
-static PyObject *profiles(PyObject *self, PyObject *args) {
-    PyObject *o_img, *o_along, *o_owner, *o_mu, *o_col, *o_yn, *o_ramp, *o_idx, *o_across, *o_str, *o_spr;
-    int half, with_spread;
-    double impulse;
-    if (!PyArg_ParseTuple(args, "OOOOidOOOpOOOO", &o_img, &o_along, &o_owner, &o_mu, &half, &impulse, &o_col,
-                          &o_yn, &o_ramp, &with_spread, &o_idx, &o_across, &o_str, &o_spr))
-        return NULL;
-    Buf img = {0}, along = {0}, owner = {0}, mu = {0}, col = {0}, yn = {0}, ramp = {0}, idx = {0}, across = {0},
-        str = {0}, spr = {0};
-    PyObject *result = NULL;
+/* The image the profiles are read from: 8-bit or float32, row-major h x w. */
+typedef struct {
+    const uint8_t *u8;
+    const float *f32;
+    Py_ssize_t h, w;
+} Image;
+
+/* The flat field (_coarse.Illumination.pixel_tables): per column the coefficients of y^0..y^deg,
+ * (deg+1, w), and each row's normalised y; cc == NULL: none. */
+typedef struct {
+    const double *cc, *yn;
+    Py_ssize_t deg;
+} Flat;
+
+/* _precise._profile_points_numpy for profiles 0..N-1; returns how many were kept (written in order,
+ * oi[k] the input index of the k-th kept one). ramp: n = 2 half + 2 interpolation weights. */
+static Py_ssize_t profile_core(const Image *im, const Flat *fl, const int64_t *al, const int64_t *ow,
+                               const double *m, Py_ssize_t N, int half, double impulse, const double *rp,
+                               int with_spread, int64_t *oi, double *oa, double *os, double *osp) {
     const int n = 2 * half + 2;
-    if (half < 1 || n > MAX_WINDOW) {
-        PyErr_SetString(PyExc_ValueError, "profiles: window half-width out of range");
-        return NULL;
-    }
-    if (PyObject_GetBuffer(o_img, &img.view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | PyBUF_ND) < 0) return NULL;
-    img.held = 1;
-    const char *f = img.view.format ? img.view.format : "B";
-    if (*f == '<' || *f == '=' || *f == '@') f++;
-    const int is_float = *f == 'f' && img.view.itemsize == 4;
-    if (img.view.ndim != 2 || !(is_float || (*f == 'B' && img.view.itemsize == 1))) {
-        PyErr_SetString(PyExc_TypeError, "profiles: img must be a 2-D uint8 or float32 array");
-        goto done;
-    }
-    const Py_ssize_t h = img.view.shape[0], w = img.view.shape[1];
-    if (get(o_along, &along, 'q', -1, 0, "along") < 0) goto done;
-    const Py_ssize_t N = items(&along);
-    if (get(o_owner, &owner, 'q', N, 0, "owner") < 0 || get(o_mu, &mu, 'd', N, 0, "mu") < 0 ||
-        get(o_ramp, &ramp, 'd', n, 0, "ramp") < 0 || get(o_idx, &idx, 'q', N, 1, "out_index") < 0 ||
-        get(o_across, &across, 'd', N, 1, "out_across") < 0 || get(o_str, &str, 'd', N, 1, "out_strength") < 0 ||
-        get(o_spr, &spr, 'd', N, 1, "out_spread") < 0)
-        goto done;
-    const int flat = o_col != Py_None;
-    Py_ssize_t deg = 0;
-    if (flat) {
-        if (get(o_col, &col, 'd', -1, 0, "colcoef") < 0 || get(o_yn, &yn, 'd', h, 0, "yn") < 0) goto done;
-        if (items(&col) % w != 0 || items(&col) / w < 1) {
-            PyErr_SetString(PyExc_ValueError, "profiles: colcoef must be (degree + 1, width)");
-            goto done;
-        }
-        deg = items(&col) / w - 1;
-    }
-    const uint8_t *img8 = (const uint8_t *)img.view.buf;
-    const float *img32 = (const float *)img.view.buf;
-    const int64_t *al = (const int64_t *)along.view.buf, *ow = (const int64_t *)owner.view.buf;
-    const double *m = (const double *)mu.view.buf, *cc = (const double *)col.view.buf,
-                 *yv = (const double *)yn.view.buf, *rp = (const double *)ramp.view.buf;
-    int64_t *oi = (int64_t *)idx.view.buf;
-    double *oa = (double *)across.view.buf, *os = (double *)str.view.buf, *osp = (double *)spr.view.buf;
+    const Py_ssize_t h = im->h, w = im->w;
     Py_ssize_t kept = 0;
     double s[MAX_WINDOW], med[MAX_WINDOW], d[MAX_WINDOW];
     for (Py_ssize_t i = 0; i < N; i++) {
         const int64_t e = ow[i];
-        if (e < 0 || e >= N_EDGES) {
-            PyErr_SetString(PyExc_ValueError, "profiles: owner out of range");
-            goto done;
-        }
         const int vert = VERTICAL[e];
-        const double fl = floor(m[i]);
-        const int64_t base = (int64_t)fl - half;
+        const double flo = floor(m[i]);
+        if (!(flo > -1e15 && flo < 1e15)) continue; /* numpy's cast of such values lands outside too */
+        const int64_t base = (int64_t)flo - half;
         const int64_t a = al[i];
         const Py_ssize_t across_size = vert ? w : h, along_size = vert ? h : w;
         if (base < 0 || base + n - 1 >= across_size || a < 0 || a >= along_size) continue;
         const Py_ssize_t start = vert ? a * w + base : base * w + a;
         const Py_ssize_t stride = vert ? 1 : w;
-        for (int k = 0; k < n; k++) {
-            const Py_ssize_t p = start + k * stride;
-            s[k] = is_float ? (double)img32[p] : (double)img8[p];
-        }
-        if (flat) {
+        if (im->f32)
+            for (int k = 0; k < n; k++) s[k] = (double)im->f32[start + k * stride];
+        else
+            for (int k = 0; k < n; k++) s[k] = (double)im->u8[start + k * stride];
+        if (fl->cc) {
             /* the illumination at the window's two ends (Horner in y with the column's coefficients),
              * linear between them */
             double v[2];
             for (int end = 0; end < 2; end++) {
                 const int64_t pos = base + (end ? n - 1 : 0);
                 const int64_t x = vert ? pos : a, y = vert ? a : pos;
-                double value = cc[deg * w + x];
-                for (Py_ssize_t j = deg - 1; j >= 0; j--) value = value * yv[y] + cc[j * w + x];
+                double value = fl->cc[fl->deg * w + x];
+                for (Py_ssize_t j = fl->deg - 1; j >= 0; j--) value = value * fl->yn[y] + fl->cc[j * w + x];
                 v[end] = value;
             }
             const double dv = v[1] - v[0];
@@ -200,7 +161,7 @@ static PyObject *profiles(PyObject *self, PyObject *args) {
         for (int k = 1; k < n - 1; k++)
             if (fabs(s[k] - med[k]) > impulse) s[k] = med[k];
         for (int k = 0; k < n - 1; k++) d[k] = s[k + 1] - s[k];
-        const double frac = m[i] - fl;
+        const double frac = m[i] - flo;
         d[0] *= 1.0 - frac;
         d[n - 2] *= frac;
         double m0 = 0.0, m1 = 0.0;
@@ -226,6 +187,91 @@ static PyObject *profiles(PyObject *self, PyObject *args) {
         osp[kept] = spread;
         kept++;
     }
+    return kept;
+}
+
+/* np.linspace(0, 1, n) */
+static void linspace01(int n, double *out) {
+    const double step = 1.0 / (double)(n - 1);
+    for (int k = 0; k < n; k++) out[k] = (double)k * step;
+    out[n - 1] = 1.0;
+}
+
+static int get_image(PyObject *obj, Buf *b, Image *im) {
+    if (PyObject_GetBuffer(obj, &b->view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | PyBUF_ND) < 0) return -1;
+    b->held = 1;
+    const char *f = b->view.format ? b->view.format : "B";
+    if (*f == '<' || *f == '=' || *f == '@') f++;
+    const int is_float = *f == 'f' && b->view.itemsize == 4;
+    if (b->view.ndim != 2 || !(is_float || (*f == 'B' && b->view.itemsize == 1))) {
+        PyErr_SetString(PyExc_TypeError, "img must be a 2-D uint8 or float32 array");
+        return -1;
+    }
+    im->h = b->view.shape[0];
+    im->w = b->view.shape[1];
+    im->u8 = is_float ? NULL : (const uint8_t *)b->view.buf;
+    im->f32 = is_float ? (const float *)b->view.buf : NULL;
+    return 0;
+}
+
+static int get_flat(PyObject *o_col, PyObject *o_yn, Buf *col, Buf *yn, const Image *im, Flat *fl) {
+    fl->cc = fl->yn = NULL;
+    fl->deg = 0;
+    if (o_col == Py_None) return 0;
+    if (get(o_col, col, 'd', -1, 0, "colcoef") < 0 || get(o_yn, yn, 'd', im->h, 0, "yn") < 0) return -1;
+    if (items(col) % im->w != 0 || items(col) / im->w < 1) {
+        PyErr_SetString(PyExc_ValueError, "colcoef must be (degree + 1, width)");
+        return -1;
+    }
+    fl->deg = items(col) / im->w - 1;
+    fl->cc = (const double *)col->view.buf;
+    fl->yn = (const double *)yn->view.buf;
+    return 0;
+}
+
+/* profiles(img, along, owner, mu, half, impulse_dn, colcoef, yn, with_spread,
+ *          out_index, out_across, out_strength, out_spread) -> kept
+ *
+ * _precise._profile_points for every profile: profile i (edge owner[i], column/row along[i]) in a
+ * window of n = 2 half + 2 samples from floor(mu[i]) - half. Profiles whose window leaves the image
+ * are dropped; the kept ones are written in order, out_index giving each one's input index.
+ * img: 2-D uint8 or float32; colcoef: (deg+1, w) float64 and yn: (h,) float64, or None (no flat
+ * field). */
+static PyObject *profiles(PyObject *self, PyObject *args) {
+    PyObject *o_img, *o_along, *o_owner, *o_mu, *o_col, *o_yn, *o_idx, *o_across, *o_str, *o_spr;
+    int half, with_spread;
+    double impulse;
+    if (!PyArg_ParseTuple(args, "OOOOidOOpOOOO", &o_img, &o_along, &o_owner, &o_mu, &half, &impulse, &o_col,
+                          &o_yn, &with_spread, &o_idx, &o_across, &o_str, &o_spr))
+        return NULL;
+    Buf img = {0}, along = {0}, owner = {0}, mu = {0}, col = {0}, yn = {0}, idx = {0}, across = {0}, str = {0},
+        spr = {0};
+    PyObject *result = NULL;
+    Image im;
+    Flat fl;
+    double ramp[MAX_WINDOW];
+    if (half < 1 || 2 * half + 2 > MAX_WINDOW) {
+        PyErr_SetString(PyExc_ValueError, "profiles: window half-width out of range");
+        return NULL;
+    }
+    if (get_image(o_img, &img, &im) < 0 || get(o_along, &along, 'q', -1, 0, "along") < 0) goto done;
+    const Py_ssize_t N = items(&along);
+    if (get(o_owner, &owner, 'q', N, 0, "owner") < 0 || get(o_mu, &mu, 'd', N, 0, "mu") < 0 ||
+        get(o_idx, &idx, 'q', N, 1, "out_index") < 0 || get(o_across, &across, 'd', N, 1, "out_across") < 0 ||
+        get(o_str, &str, 'd', N, 1, "out_strength") < 0 || get(o_spr, &spr, 'd', N, 1, "out_spread") < 0 ||
+        get_flat(o_col, o_yn, &col, &yn, &im, &fl) < 0)
+        goto done;
+    const int64_t *ow = (const int64_t *)owner.view.buf;
+    for (Py_ssize_t i = 0; i < N; i++)
+        if (ow[i] < 0 || ow[i] >= N_EDGES) {
+            PyErr_SetString(PyExc_ValueError, "profiles: owner out of range");
+            goto done;
+        }
+    linspace01(2 * half + 2, ramp);
+    const Py_ssize_t kept =
+        profile_core(&im, &fl, (const int64_t *)along.view.buf, ow, (const double *)mu.view.buf, N, half, impulse,
+                     ramp, with_spread, (int64_t *)idx.view.buf, (double *)across.view.buf,
+                     (double *)str.view.buf, (double *)spr.view.buf);
     result = PyLong_FromSsize_t(kept);
 done:
     release(&img);
@@ -234,7 +280,6 @@ done:
     release(&mu);
     release(&col);
     release(&yn);
-    release(&ramp);
     release(&idx);
     release(&across);
     release(&str);
@@ -291,76 +336,43 @@ static void tls(const double *x, const double *y, const uint8_t *sel, const Py_s
     }
 }
 
-/* fit(owner, along, across, strength, spread|None, slope, intercept, half, last, min_edge_points,
- *     min_contrast_dn, min_contrast_fraction, outlier_sigma, residual_limit, out_inliers, out_stats)
- *   -> (stage tuple, spread or None)
- *
- * _precise._fit_edges's arithmetic for all four edges. out_stats (9, 4) float64 receives rows:
- * counts, contrast, n_good, n_in, rms, a, b, c, (unused); out_inliers (N,) bool the final inliers.
- * stage[e]: 0 found, else the first test the edge failed (1 too few profiles, 2 contrast, 3 too few
- * good profiles, 4 not on a line (robust), 5 rms over the limit). */
-static PyObject *fit(PyObject *self, PyObject *args) {
-    PyObject *o_owner, *o_t, *o_a, *o_str, *o_spr, *o_slope, *o_icpt, *o_in, *o_stats;
-    int half, last, min_points;
+typedef struct {
+    int min_points;
     double min_contrast, min_fraction, outlier_sigma, limit;
-    if (!PyArg_ParseTuple(args, "OOOOOOOipiddddOO", &o_owner, &o_t, &o_a, &o_str, &o_spr, &o_slope, &o_icpt,
-                          &half, &last, &min_points, &min_contrast, &min_fraction, &outlier_sigma, &limit,
-                          &o_in, &o_stats))
-        return NULL;
-    Buf owner = {0}, tb = {0}, ab = {0}, strb = {0}, sprb = {0}, slb = {0}, icb = {0}, inb = {0}, stb = {0};
-    PyObject *result = NULL;
-    double *x = NULL, *y = NULL, *resid = NULL, *dev = NULL, *work = NULL;
-    uint8_t *good = NULL;
-    if (get(o_owner, &owner, 'q', -1, 0, "owner") < 0) return NULL;
-    const Py_ssize_t N = items(&owner);
-    if (get(o_t, &tb, 'd', N, 0, "along") < 0 || get(o_a, &ab, 'd', N, 0, "across") < 0 ||
-        get(o_str, &strb, 'd', N, 0, "strength") < 0 || get(o_slope, &slb, 'd', N_EDGES, 0, "slope") < 0 ||
-        get(o_icpt, &icb, 'd', N_EDGES, 0, "intercept") < 0 || get(o_in, &inb, '?', N, 1, "out_inliers") < 0 ||
-        get(o_stats, &stb, 'd', 9 * N_EDGES, 1, "out_stats") < 0)
-        goto done;
-    const int has_spread = o_spr != Py_None;
-    if (has_spread && get(o_spr, &sprb, 'd', N, 0, "spread") < 0) goto done;
-    const int64_t *ow = (const int64_t *)owner.view.buf;
-    const double *t = (const double *)tb.view.buf, *a = (const double *)ab.view.buf,
-                 *strength = (const double *)strb.view.buf, *spr = (const double *)sprb.view.buf,
-                 *slope = (const double *)slb.view.buf, *icpt = (const double *)icb.view.buf;
-    uint8_t *inl = (uint8_t *)inb.view.buf;
-    double *stats = (double *)stb.view.buf;
+} FitParams;
+
+/* Work space of fit_core for up to n profiles. */
+typedef struct {
+    double *x, *y, *resid, *dev, *work;
+    uint8_t *good;
+} FitWork;
+
+/* _precise._fit_edges_numpy's arithmetic for all four edges (owner grouped by edge 0..3).
+ * Writes inl (the final inliers), stats (9 x 4: counts, contrast, n_good, n_in, rms, a, b, c, -),
+ * stage[e] (0 found, else the first test failed: 1 too few profiles, 2 contrast, 3 too few good
+ * profiles, 4 not on a line (robust), 5 rms over the limit) and *spread (the median line spread when
+ * spr is given and every edge passed, else NAN). x, y: the points in image coordinates. */
+static void fit_core(const int64_t *ow, const double *t, const double *a, const double *strength,
+                     const double *spr, Py_ssize_t N, const double *slope, const double *icpt, int half, int last,
+                     const FitParams *fp, FitWork *ws, uint8_t *inl, double *stats, int *stage, double *spread) {
+    double *x = ws->x, *y = ws->y, *resid = ws->resid, *dev = ws->dev, *work = ws->work;
+    uint8_t *good = ws->good;
     Py_ssize_t first[N_EDGES], count[N_EDGES];
     for (int e = 0; e < N_EDGES; e++) count[e] = 0;
-    for (Py_ssize_t i = 0; i < N; i++) {
-        if (ow[i] < 0 || ow[i] >= N_EDGES || (i > 0 && ow[i] < ow[i - 1])) {
-            PyErr_SetString(PyExc_ValueError, "fit: owner must be grouped edge indices 0-3");
-            goto done;
-        }
-        count[ow[i]]++;
-    }
+    for (Py_ssize_t i = 0; i < N; i++) count[ow[i]]++;
     first[0] = 0;
     for (int e = 1; e < N_EDGES; e++) first[e] = first[e - 1] + count[e - 1];
-    const Py_ssize_t alloc = N > 0 ? N : 1;
-    x = malloc(alloc * sizeof(double));
-    y = malloc(alloc * sizeof(double));
-    resid = malloc(alloc * sizeof(double));
-    dev = malloc(alloc * sizeof(double));
-    work = malloc(alloc * sizeof(double));
-    good = malloc(alloc);
-    if (!x || !y || !resid || !dev || !work || !good) {
-        PyErr_NoMemory();
-        goto done;
-    }
-    int stage[N_EDGES] = {0, 0, 0, 0};
     double contrast[N_EDGES], n_good[N_EDGES], n_in[N_EDGES], rms[N_EDGES], la[N_EDGES], lb[N_EDGES],
         lc[N_EDGES], med[N_EDGES], sigma[N_EDGES];
-    for (int e = 0; e < N_EDGES; e++)
-        if (count[e] < min_points) stage[e] = 1;
+    for (int e = 0; e < N_EDGES; e++) stage[e] = count[e] < fp->min_points ? 1 : 0;
     grouped_median(strength, NULL, first, count, work, contrast);
     for (int e = 0; e < N_EDGES; e++)
-        if (!stage[e] && contrast[e] < min_contrast) stage[e] = 2;
+        if (!stage[e] && contrast[e] < fp->min_contrast) stage[e] = 2;
     const double tol = last ? half / 2.0 : half - 2.0;
     for (int e = 0; e < N_EDGES; e++) {
         Py_ssize_t c = 0;
         for (Py_ssize_t i = first[e]; i < first[e] + count[e]; i++) {
-            const int g = !stage[e] && strength[i] > min_fraction * contrast[e] &&
+            const int g = !stage[e] && strength[i] > fp->min_fraction * contrast[e] &&
                           fabs(a[i] - (slope[e] * t[i] + icpt[e])) < tol;
             good[i] = (uint8_t)g;
             c += g;
@@ -368,7 +380,7 @@ static PyObject *fit(PyObject *self, PyObject *args) {
             y[i] = VERTICAL[e] ? t[i] : a[i];
         }
         n_good[e] = (double)c;
-        if (!stage[e] && c < min_points) stage[e] = 3;
+        if (!stage[e] && c < fp->min_points) stage[e] = 3;
     }
     /* residuals from the previous models' normal forms */
     for (int e = 0; e < N_EDGES; e++) {
@@ -390,10 +402,10 @@ static PyObject *fit(PyObject *self, PyObject *args) {
         grouped_median(dev, inl, first, count, work, sigma);
         for (int e = 0; e < N_EDGES; e++) {
             sigma[e] = 1.4826 * sigma[e];
-            if (!(sigma[e] >= 1e-3)) sigma[e] = sigma[e] != sigma[e] ? sigma[e] : 1e-3;
+            if (!(sigma[e] >= 1e-3) && sigma[e] == sigma[e]) sigma[e] = 1e-3; /* np.maximum keeps NaN */
         }
         for (int e = 0; e < N_EDGES; e++) {
-            const double band = outlier_sigma * sigma[e];
+            const double band = fp->outlier_sigma * sigma[e];
             for (Py_ssize_t i = first[e]; i < first[e] + count[e]; i++)
                 inl[i] = good[i] && !stage[e] && dev[i] <= band;
             n_in[e] = (double)grouped_count(inl, first[e], count[e]);
@@ -416,7 +428,7 @@ static PyObject *fit(PyObject *self, PyObject *args) {
         for (Py_ssize_t i = first[e]; i < first[e] + count[e]; i++)
             if (inl[i]) ss += resid[i] * resid[i];
         rms[e] = sqrt(ss / n);
-        if (last && !stage[e] && rms[e] > limit) stage[e] = 5;
+        if (last && !stage[e] && rms[e] > fp->limit) stage[e] = 5;
     }
     for (int e = 0; e < N_EDGES; e++) {
         stats[0 * N_EDGES + e] = (double)count[e];
@@ -429,37 +441,182 @@ static PyObject *fit(PyObject *self, PyObject *args) {
         stats[7 * N_EDGES + e] = lc[e];
         stats[8 * N_EDGES + e] = 0.0;
     }
-    PyObject *spread = Py_None;
-    Py_INCREF(Py_None);
+    *spread = NAN;
     int all_ok = 1;
     for (int e = 0; e < N_EDGES; e++) all_ok &= !stage[e];
-    if (has_spread && all_ok) {
+    if (spr && all_ok) {
         double m4[N_EDGES];
         grouped_median(spr, good, first, count, work, m4);
         /* the upper median of the four: sorted[2] */
         for (int i = 1; i < N_EDGES; i++)
             for (int j = i; j > 0 && m4[j] < m4[j - 1]; j--) swap_d(&m4[j], &m4[j - 1]);
-        Py_DECREF(Py_None);
-        spread = PyFloat_FromDouble(m4[N_EDGES / 2]);
-        if (!spread) goto done;
+        *spread = m4[N_EDGES / 2];
     }
-    result = Py_BuildValue("(iiii)N", stage[0], stage[1], stage[2], stage[3], spread);
+}
+
+/* fine(img, slope, intercept, colcoef, yn, passes, window_px, window_sigmas, profile_step,
+ *      corner_margin_px, impulse_dn, min_edge_points, min_contrast_dn, min_contrast_fraction,
+ *      outlier_sigma, residual_limit_px, out_stats, out_points) -> (stages, last, n_points)
+ *
+ * _precise.precise_edges's passes after the coarse stage, all in one call: per pass the profile grid
+ * without the crossing's corners, the profiles, the four fits, the new models and window. slope and
+ * intercept: the initial models (4,), float64, updated in place. Stops at the first pass with a
+ * failed edge: stages (4 ints) as fit_core's, last: whether that was the last pass. out_stats (9, 4)
+ * as fit_core's; out_points (>= 2 (w + h), 2) float64 receives the last pass's inliers (x, y),
+ * grouped by edge (stats row 3 the counts). window_px < 0: automatic. */
+static PyObject *fine(PyObject *self, PyObject *args) {
+    PyObject *o_img, *o_slope, *o_icpt, *o_col, *o_yn, *o_stats, *o_pts;
+    int passes, window_px, step, min_points;
+    double window_sigmas, margin, impulse, min_contrast, min_fraction, outlier_sigma, limit;
+    if (!PyArg_ParseTuple(args, "OOOOOiididdiddddOO", &o_img, &o_slope, &o_icpt, &o_col, &o_yn, &passes,
+                          &window_px, &window_sigmas, &step, &margin, &impulse, &min_points, &min_contrast,
+                          &min_fraction, &outlier_sigma, &limit, &o_stats, &o_pts))
+        return NULL;
+    Buf img = {0}, slb = {0}, icb = {0}, col = {0}, yn = {0}, stb = {0}, ptb = {0};
+    PyObject *result = NULL;
+    Image im;
+    Flat fl;
+    int64_t *al = NULL, *ow = NULL, *idx = NULL, *kow = NULL;
+    double *mu = NULL, *across = NULL, *str = NULL, *spr = NULL, *t = NULL, *kspr = NULL;
+    uint8_t *inl = NULL;
+    FitWork ws = {0};
+    if (passes < 1 || step < 1 || (window_px >= 0 && (window_px < 1 || 2 * window_px + 2 > MAX_WINDOW))) {
+        PyErr_SetString(PyExc_ValueError, "fine: passes, profile step or window out of range");
+        return NULL;
+    }
+    if (get_image(o_img, &img, &im) < 0 || get(o_slope, &slb, 'd', N_EDGES, 1, "slope") < 0 ||
+        get(o_icpt, &icb, 'd', N_EDGES, 1, "intercept") < 0 || get_flat(o_col, o_yn, &col, &yn, &im, &fl) < 0 ||
+        get(o_stats, &stb, 'd', 9 * N_EDGES, 1, "out_stats") < 0 || get(o_pts, &ptb, 'd', -1, 1, "out_points") < 0)
+        goto done;
+    const Py_ssize_t h = im.h, w = im.w, cap = 2 * (w + h);
+    if (items(&ptb) < 2 * cap) {
+        PyErr_SetString(PyExc_ValueError, "fine: out_points must hold 2 (w + h) points");
+        goto done;
+    }
+    double *slope = (double *)slb.view.buf, *icpt = (double *)icb.view.buf, *stats = (double *)stb.view.buf,
+           *pts = (double *)ptb.view.buf;
+    al = malloc(cap * sizeof(int64_t));
+    ow = malloc(cap * sizeof(int64_t));
+    idx = malloc(cap * sizeof(int64_t));
+    kow = malloc(cap * sizeof(int64_t));
+    mu = malloc(cap * sizeof(double));
+    across = malloc(cap * sizeof(double));
+    str = malloc(cap * sizeof(double));
+    spr = malloc(cap * sizeof(double));
+    t = malloc(cap * sizeof(double));
+    kspr = malloc(cap * sizeof(double));
+    inl = malloc(cap);
+    ws.x = malloc(cap * sizeof(double));
+    ws.y = malloc(cap * sizeof(double));
+    ws.resid = malloc(cap * sizeof(double));
+    ws.dev = malloc(cap * sizeof(double));
+    ws.work = malloc(cap * sizeof(double));
+    ws.good = malloc(cap);
+    if (!al || !ow || !idx || !kow || !mu || !across || !str || !spr || !t || !kspr || !inl || !ws.x || !ws.y ||
+        !ws.resid || !ws.dev || !ws.work || !ws.good) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    const FitParams fp = {min_points, min_contrast, min_fraction, outlier_sigma, limit};
+    /* the first pass steers from the coarse cross: a wide window */
+    int half = window_px >= 0 ? window_px : 8;
+    int stage[N_EDGES] = {0, 0, 0, 0}, last = 0;
+    Py_ssize_t kept = 0;
+    for (int pass = 0; pass < passes; pass++) {
+        last = pass == passes - 1;
+        /* _profile_grid: every step-th column (row) at least half + 2 px from the border */
+        const int64_t border = half + 2, grid = last ? step : 8;
+        /* _crossing_extent: per edge, the mean and half-range of the along coordinates of the four
+         * vertices */
+        double xs[2][2], ys[2][2];
+        for (int i = 0; i < 2; i++)
+            for (int j = 0; j < 2; j++) {
+                const double sh = slope[i], ih = icpt[i], sv = slope[2 + j], iv = icpt[2 + j];
+                xs[i][j] = (sv * ih + iv) / (1.0 - sv * sh);
+                ys[i][j] = sh * xs[i][j] + ih;
+            }
+        double centre[N_EDGES], reach[N_EDGES];
+        for (int e = 0; e < N_EDGES; e++) {
+            const double *v = e < 2 ? &xs[0][0] : &ys[0][0];
+            double lo = v[0], hi = v[0];
+            for (int k = 1; k < 4; k++) {
+                lo = v[k] < lo ? v[k] : lo;
+                hi = v[k] > hi ? v[k] : hi;
+            }
+            centre[e] = (v[0] + ((v[1] + v[2]) + v[3])) / 4.0; /* numpy's order for a row of 4 */
+            reach[e] = (hi - lo) / 2.0 + margin;
+        }
+        Py_ssize_t N = 0;
+        for (int e = 0; e < N_EDGES; e++) {
+            const Py_ssize_t size = VERTICAL[e] ? h : w;
+            for (int64_t a = border; a < size - border; a += grid) {
+                if (!(fabs((double)a - centre[e]) > reach[e])) continue; /* the rounded land corners */
+                al[N] = a;
+                ow[N] = e;
+                mu[N] = slope[e] * (double)a + icpt[e];
+                N++;
+            }
+        }
+        double ramp[MAX_WINDOW];
+        linspace01(2 * half + 2, ramp);
+        kept = profile_core(&im, &fl, al, ow, mu, N, half, impulse, ramp, !last, idx, across, str, spr);
+        for (Py_ssize_t k = 0; k < kept; k++) {
+            kow[k] = ow[idx[k]];
+            t[k] = (double)al[idx[k]];
+        }
+        double spread;
+        fit_core(kow, t, across, str, last ? NULL : spr, kept, slope, icpt, half, last, &fp, &ws, inl, stats,
+                 stage, &spread);
+        if (stage[0] || stage[1] || stage[2] || stage[3]) break;
+        for (int e = 0; e < N_EDGES; e++) {
+            const double la = stats[5 * N_EDGES + e], lb = stats[6 * N_EDGES + e], lc = stats[7 * N_EDGES + e];
+            slope[e] = VERTICAL[e] ? -lb / la : -la / lb;
+            icpt[e] = VERTICAL[e] ? lc / la : lc / lb;
+        }
+        if (window_px < 0 && !isnan(spread)) {
+            /* window_sigmas line-spread sigmas + 1 px (the spread includes the first difference's two
+             * unit boxes: 2/12 px^2) */
+            const double v = spread - 1.0 / 6.0;
+            const double sigma = sqrt(v > 0.1 ? v : 0.1);
+            double hw = ceil(window_sigmas * sigma) + 1.0;
+            hw = hw < 3.0 ? 3.0 : (hw > 12.0 ? 12.0 : hw);
+            half = (int)hw;
+        }
+    }
+    Py_ssize_t n_points = 0;
+    if (last && !(stage[0] || stage[1] || stage[2] || stage[3]))
+        for (Py_ssize_t k = 0; k < kept; k++)
+            if (inl[k]) {
+                pts[2 * n_points] = ws.x[k];
+                pts[2 * n_points + 1] = ws.y[k];
+                n_points++;
+            }
+    result = Py_BuildValue("(iiii)in", stage[0], stage[1], stage[2], stage[3], last, n_points);
 done:
-    free(x);
-    free(y);
-    free(resid);
-    free(dev);
-    free(work);
-    free(good);
-    release(&owner);
-    release(&tb);
-    release(&ab);
-    release(&strb);
-    release(&sprb);
+    free(al);
+    free(ow);
+    free(idx);
+    free(kow);
+    free(mu);
+    free(across);
+    free(str);
+    free(spr);
+    free(t);
+    free(kspr);
+    free(inl);
+    free(ws.x);
+    free(ws.y);
+    free(ws.resid);
+    free(ws.dev);
+    free(ws.work);
+    free(ws.good);
+    release(&img);
     release(&slb);
     release(&icb);
-    release(&inb);
+    release(&col);
+    release(&yn);
     release(&stb);
+    release(&ptb);
     return result;
 }
 
@@ -467,10 +624,10 @@ done:
 
 static PyMethodDef methods[] = {
     {"profiles", profiles, METH_VARARGS, "Sub-pixel edge positions of precise mode's profiles."},
-    {"fit", fit, METH_VARARGS, "Precise mode's robust line fits of the four edges."},
+    {"fine", fine, METH_VARARGS, "Precise mode's fine stage: every pass's profiles and line fits."},
     {NULL, NULL, 0, NULL},
 };
 
-static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_ckernels", NULL, -1, methods};
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_ckernels", NULL, -1, methods, NULL, NULL, NULL, NULL};
 
 PyMODINIT_FUNC PyInit__ckernels(void) { return PyModule_Create(&module); }

@@ -27,6 +27,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
+from types import ModuleType
 
 import cv2
 import numpy as np
@@ -170,65 +171,9 @@ def _profile_points(
 
     Profile i runs across edge ``owner[i]`` at ``along[i]`` (a column for horizontal edges, a row for
     vertical ones), in a window of ``2 * half + 2`` samples about the predicted position ``mu[i]``.
-    Profiles whose window does not fit inside the image are dropped. The compiled kernel
-    (``_kernels``) when selected, else the numpy reference below.
+    Profiles whose window does not fit inside the image are dropped. The numpy reference of the
+    compiled kernel (``_ckernels.profiles``, run by ``_fine_compiled``).
     """
-    ck = compiled()
-    if ck is None:
-        return _profile_points_numpy(
-            img,
-            along=along,
-            owner=owner,
-            mu=mu,
-            half=half,
-            impulse_dn=impulse_dn,
-            illumination=illumination,
-            with_spread=with_spread,
-        )
-    n_all = along.size
-    index = np.empty(n_all, np.int64)
-    across, strength, spread = np.empty(n_all), np.empty(n_all), np.empty(n_all)
-    colcoef = yn = None
-    if illumination is not None:
-        colcoef, yn = illumination.pixel_tables()
-    kept = ck.profiles(
-        img,
-        np.ascontiguousarray(along, np.int64),
-        np.ascontiguousarray(owner, np.int64),
-        np.ascontiguousarray(mu, np.float64),
-        half,
-        float(impulse_dn),
-        colcoef,
-        yn,
-        _ramp(2 * half + 2),
-        with_spread,
-        index,
-        across,
-        strength,
-        spread,
-    )
-    index = index[:kept]
-    return _Profiles(
-        owner[index],
-        along[index].astype(np.float64),
-        across[:kept],
-        strength[:kept],
-        spread[:kept] if with_spread else None,
-    )
-
-
-def _profile_points_numpy(
-    img: npt.NDArray[np.uint8] | npt.NDArray[np.float32],
-    *,
-    along: npt.NDArray[np.intp],
-    owner: npt.NDArray[np.intp],
-    mu: FloatArray,
-    half: int,
-    impulse_dn: float,
-    illumination: Illumination | None = None,
-    with_spread: bool = True,
-) -> _Profiles:
-    """``_profile_points`` in numpy: the reference the compiled kernel is tested against."""
     h, w = img.shape
     n = 2 * half + 2
     vertical = _VERTICAL[owner]
@@ -327,71 +272,17 @@ def _tls(
     return nx, ny, nx * mx + ny * my
 
 
-def _fit_edges(
-    p: _Profiles, models: _Models, params: MeasureParams, *, half: int, last: bool
-) -> tuple[dict[Edge, EdgeFit], _Models, float | None, dict[Edge, str]]:
-    """The four edges' lines from their profiles (module docstring, step 3), all edges at once.
-
-    Returns (fits on the last pass, new models, median line spread, problems: per edge the reason it
-    was not found). The compiled kernel (``_kernels``) when selected, else the numpy reference below.
-    """
-    ck = compiled()
-    if ck is None:
-        return _fit_edges_numpy(p, models, params, half=half, last=last)
-    n_all = p.owner.size
-    inliers = np.empty(n_all, np.bool_)
-    stats = np.empty((9, len(EDGES)))
-    stages, spread = ck.fit(
-        np.ascontiguousarray(p.owner, np.int64),
-        p.along,
-        p.across,
-        p.strength,
-        p.spread,
-        np.ascontiguousarray(models.slope, np.float64),
-        np.ascontiguousarray(models.intercept, np.float64),
-        half,
-        last,
-        params.min_edge_points,
-        params.min_contrast_dn,
-        params.min_contrast_fraction,
-        params.outlier_sigma,
-        params.residual_limit_px,
-        inliers,
-        stats,
-    )
-    counts, contrast, n_good, n_in, rms, la, lb, lc = (row.tolist() for row in stats[:8])
-    problems: dict[Edge, str] = {}
-    for i, stage in enumerate(stages):
-        if stage:
-            problems[EDGES[i]] = _failure(
-                stage, params, count=int(counts[i]), contrast=contrast[i], good=int(n_good[i]), rms=rms[i]
-            )
-    fits: dict[Edge, EdgeFit] = {}
-    if last and not problems:
-        vertical = _VERTICAL[p.owner]
-        x, y = np.where(vertical, p.across, p.along), np.where(vertical, p.along, p.across)
-        points = np.split(np.column_stack([x[inliers], y[inliers]]), np.cumsum(n_in[:-1]).astype(np.intp))
-        for i, edge in enumerate(EDGES):
-            used = int(n_in[i])
-            fits[edge] = EdgeFit(
-                name=edge,
-                line=(la[i], lb[i], lc[i]),
-                segmented=int(counts[i]),
-                used=used,
-                removed=int(counts[i]) - used,
-                rms_px=rms[i],
-                points=points[i],
-            )
-    a, b, c = stats[5], stats[6], stats[7]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        slope = np.where(_VERTICAL, -b / a, -a / b)
-        intercept = np.where(_VERTICAL, c / a, c / b)
-    return fits, _Models(slope, intercept), spread, problems
-
-
-def _failure(stage: int, params: MeasureParams, *, count: int, contrast: float, good: int, rms: float) -> str:
-    """Why an edge was not found, by the first test it failed (``_ckernels.fit``'s stage numbers; the
-    same sentences as ``_fit_edges_numpy``'s)."""
+def _failure(
+    stage: int,
+    params: MeasureParams,
+    *,
+    count: int = 0,
+    contrast: float = 0.0,
+    good: int = 0,
+    rms: float = 0.0,
+) -> str:
+    """Why an edge was not found, by the first test it failed (``_ckernels.fine``'s stage numbers; the
+    numpy reference ``_fit_edges`` uses the same)."""
     if stage == 1:
         return (
             f"only {count} of its profiles fit inside the frame (at least {params.min_edge_points}): "
@@ -406,10 +297,14 @@ def _failure(stage: int, params: MeasureParams, *, count: int, contrast: float, 
     return f"its points are not on a line (rms {rms:.2f} px)"
 
 
-def _fit_edges_numpy(
+def _fit_edges(
     p: _Profiles, models: _Models, params: MeasureParams, *, half: int, last: bool
 ) -> tuple[dict[Edge, EdgeFit], _Models, float | None, dict[Edge, str]]:
-    """``_fit_edges`` in numpy: the reference the compiled kernel is tested against."""
+    """The four edges' lines from their profiles (module docstring, step 3), all edges at once.
+
+    Returns (fits on the last pass, new models, median line spread, problems: per edge the reason it
+    was not found). The numpy reference of the compiled kernel (``_fine_compiled``).
+    """
     groups = _Groups(p.owner)
     owner, t, a = p.owner, p.along, p.across
     problems: dict[Edge, str] = {}
@@ -423,23 +318,14 @@ def _fit_edges_numpy(
         ok[where] = False
 
     counts = groups.counts
-    fail(
-        counts < params.min_edge_points,
-        lambda i: (
-            f"only {counts[i]} of its profiles fit inside the frame (at least {params.min_edge_points}): "
-            "it runs too close to the border; keep the groove corners 10 px or more inside the frame"
-        ),
-    )
+    fail(counts < params.min_edge_points, lambda i: _failure(1, params, count=int(counts[i])))
     contrast = groups.median(p.strength, np.ones(owner.size, bool), counts)
-    fail(
-        contrast < params.min_contrast_dn,
-        lambda i: f"its contrast is {contrast[i]:.1f} DN (at least {params.min_contrast_dn} DN)",
-    )
+    fail(contrast < params.min_contrast_dn, lambda i: _failure(2, params, contrast=float(contrast[i])))
     tol = half / 2.0 if last else half - 2.0
     good = ok[owner] & (p.strength > params.min_contrast_fraction * contrast[owner])
     good &= np.abs(a - (models.slope[owner] * t + models.intercept[owner])) < tol
     n_good = groups.count(good)
-    fail(n_good < params.min_edge_points, lambda i: f"only {n_good[i]} profiles show the edge")
+    fail(n_good < params.min_edge_points, lambda i: _failure(3, params, good=int(n_good[i])))
     vertical = _VERTICAL[owner]
     x, y = np.where(vertical, a, t), np.where(vertical, t, a)
     # robust orthogonal fit: residuals first from the previous pass's line, outliers beyond
@@ -454,7 +340,7 @@ def _fit_edges_numpy(
         sigma = np.maximum(1.4826 * groups.median(dev, inliers, n_in), 1e-3)
         inliers = good & ok[owner] & (dev <= params.outlier_sigma * sigma[owner])
         n_in = groups.count(inliers)
-        fail(n_in < 3, lambda i: "its points do not lie on a line")
+        fail(n_in < 3, lambda i: _failure(4, params))
         inliers &= ok[owner]
         la, lb, lc = _tls(groups, x, y, inliers)
         resid = la[owner] * x + lb[owner] * y - lc[owner]
@@ -465,7 +351,7 @@ def _fit_edges_numpy(
     rms = np.sqrt(groups.weights(inliers) @ (resid * resid) / n_in)
     if last:  # earlier passes only steer the windows
         limit = params.residual_limit_px
-        fail(rms > limit, lambda i: f"its points are not on a line (rms {rms[i]:.2f} px)")
+        fail(rms > limit, lambda i: _failure(5, params, rms=float(rms[i])))
     fits: dict[Edge, EdgeFit] = {}
     if last and not problems:
         # the inliers keep the profiles' order, grouped by edge: one selection, split by the counts
@@ -526,6 +412,9 @@ def precise_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
         gray = np.clip(np.rint(img), 0, 255).astype(np.uint8)  # the coarse stage works on 8 bits
     coarse = coarse_cross(gray, params)
     models = _initial_models(coarse, (h, w))
+    ck = compiled()
+    if ck is not None:
+        return _fine_compiled(ck, img, models, coarse.illumination, params)
     # the first pass steers from the coarse cross (a pixel or two off at the frame's ends): wide window
     half = params.window_px if params.window_px is not None else 8
     fits: dict[Edge, EdgeFit] = {}
@@ -559,3 +448,65 @@ def precise_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
             sigma = math.sqrt(max(spread - 1.0 / 6.0, 0.1))
             half = int(np.clip(math.ceil(params.window_sigmas * sigma) + 1, 3, 12))
     return fits
+
+
+def _fine_compiled(
+    ck: ModuleType,
+    img: npt.NDArray[np.uint8] | npt.NDArray[np.float32],
+    models: _Models,
+    illumination: Illumination | None,
+    params: MeasureParams,
+) -> dict[Edge, EdgeFit]:
+    """``precise_edges``'s passes (the loop above, with ``_profile_points`` and ``_fit_edges``) in one
+    call of the compiled kernel ``_ckernels.fine``; the same results within 1e-12 px."""
+    h, w = img.shape
+    slope = np.array(models.slope, np.float64)
+    intercept = np.array(models.intercept, np.float64)
+    colcoef, yn = illumination.pixel_tables() if illumination is not None else (None, None)
+    stats = np.empty((9, len(EDGES)))
+    points = np.empty((2 * (w + h), 2))
+    stages, _, n_points = ck.fine(
+        np.ascontiguousarray(img),
+        slope,
+        intercept,
+        colcoef,
+        yn,
+        params.passes,
+        -1 if params.window_px is None else params.window_px,
+        params.window_sigmas,
+        params.profile_step,
+        params.corner_margin_px,
+        params.impulse_dn,
+        params.min_edge_points,
+        params.min_contrast_dn,
+        params.min_contrast_fraction,
+        params.outlier_sigma,
+        params.residual_limit_px,
+        stats,
+        points,
+    )
+    counts, contrast, n_good, n_in, rms, la, lb, lc = (row.tolist() for row in stats[:8])
+    if any(stages):
+        problems = {
+            EDGES[i]: _failure(
+                stage, params, count=int(counts[i]), contrast=contrast[i], good=int(n_good[i]), rms=rms[i]
+            )
+            for i, stage in enumerate(stages)
+            if stage
+        }
+        found = tuple(e for e in EDGES if e not in problems)
+        raise EdgeNotFoundError(describe_missing(problems), found=found)
+    used = [int(n) for n in n_in]
+    split = np.split(points[:n_points], np.cumsum(used[:-1]))
+    return {
+        edge: EdgeFit(
+            name=edge,
+            line=(la[i], lb[i], lc[i]),
+            segmented=int(counts[i]),
+            used=used[i],
+            removed=int(counts[i]) - used[i],
+            rms_px=rms[i],
+            points=np.ascontiguousarray(split[i]),
+        )
+        for i, edge in enumerate(EDGES)
+    }

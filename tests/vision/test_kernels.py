@@ -104,10 +104,13 @@ def test_precise_kernels_fail_as_the_reference_does(rendered: Render) -> None:
         _assert_same(out, name)
 
 
-def test_the_profiles_kernel_drops_the_windows_the_reference_drops() -> None:
-    """Windows leaving the frame: the same kept profiles, in the same order."""
-    if not available():
-        pytest.skip("the compiled kernels were not built")
+@pytest.mark.skipif(not available(), reason="the compiled kernels were not built")
+@pytest.mark.parametrize("flat_field", [False, True])
+def test_the_profiles_kernel_equals_the_reference_and_drops_the_same_windows(flat_field: bool) -> None:
+    """Windows leaving the frame are dropped: the same kept profiles, in the same order, the same
+    positions, strengths and spreads (with and without the flat field)."""
+    from station.vision import _ckernels
+    from station.vision._coarse import Illumination
     from station.vision._precise import _profile_points
 
     rng = np.random.default_rng(1)
@@ -115,16 +118,21 @@ def test_the_profiles_kernel_drops_the_windows_the_reference_drops() -> None:
     along = np.array([5, 50, 100, 150, 5, 60, 110, 10, 60, 100], np.intp)
     owner = np.array([0, 0, 0, 1, 1, 1, 2, 2, 3, 3], np.intp)
     mu = np.array([3.0, 60.5, 116.2, 40.0, -2.0, 80.9, 150.1, 157.9, 20.25, 80.0])
-    res = {}
-    for kernel in ("numpy", "c"):
-        with kernels(kernel):
-            res[kernel] = _profile_points(img, along=along, owner=owner, mu=mu, half=4, impulse_dn=25.0)
-    a, b = res["c"], res["numpy"]
-    assert_array_equal(a.owner, b.owner)
-    assert_array_equal(a.along, b.along)
-    assert_allclose(a.across, b.across, rtol=0, atol=1e-12)
-    assert_allclose(a.strength, b.strength, rtol=1e-12)
-    assert a.spread is not None
-    assert b.spread is not None
-    assert_allclose(a.spread, b.spread, rtol=1e-9, atol=1e-12)
-    assert a.owner.size < owner.size  # some windows left the frame
+    light = Illumination(np.linspace(1.0, 0.2, 15) * 0.1 + np.r_[1.0, np.zeros(14)] * 0.9, (120, 160))
+    illumination = light if flat_field else None
+    ref = _profile_points(
+        img, along=along, owner=owner, mu=mu, half=4, impulse_dn=25.0, illumination=illumination
+    )
+    n = along.size
+    index, across, strength, spread = np.empty(n, np.int64), np.empty(n), np.empty(n), np.empty(n)
+    colcoef, yn = light.pixel_tables() if flat_field else (None, None)
+    kept = _ckernels.profiles(
+        img, along, owner, mu, 4, 25.0, colcoef, yn, True, index, across, strength, spread
+    )
+    assert 0 < kept < n  # some windows left the frame
+    assert_array_equal(owner[index[:kept]], ref.owner)
+    assert_array_equal(along[index[:kept]], ref.along)
+    assert_allclose(across[:kept], ref.across, rtol=0, atol=1e-12)
+    assert_allclose(strength[:kept], ref.strength, rtol=1e-12)
+    assert ref.spread is not None
+    assert_allclose(spread[:kept], ref.spread, rtol=1e-9, atol=1e-12)
