@@ -620,11 +620,90 @@ done:
     return result;
 }
 
+/* ---------------------------------------------------------------- precise: the coarse projections */
+
+/* project(small, shape_h, shape_w, scale, theta, out_u, out_v, out_counts, out_sums) -> (base_v, bins_v,
+ *                                                                                    base_u, bins_u)
+ *
+ * _coarse.coarse_cross's projections of the reduced image (float32, (sh, sw)) along the two grooves:
+ * per reduced pixel its full-resolution coordinates relative to the image centre (_centred_grid),
+ * u along the horizontal groove and v along the vertical one (written to out_u, out_v: (sh, sw)
+ * float64), then for v and for u the pixels binned by floor(coord / scale) - base (base: the
+ * smallest), with each bin's count and sum of values: out_counts, out_sums (2, cap) float64, row 0
+ * for v, row 1 for u, zero beyond each row's bins. */
+static PyObject *project(PyObject *self, PyObject *args) {
+    PyObject *o_small, *o_u, *o_v, *o_counts, *o_sums;
+    Py_ssize_t h, w;
+    int scale;
+    double theta;
+    if (!PyArg_ParseTuple(args, "OnnidOOOO", &o_small, &h, &w, &scale, &theta, &o_u, &o_v, &o_counts, &o_sums))
+        return NULL;
+    Buf sb = {0}, ub = {0}, vb = {0}, cb = {0}, smb = {0};
+    PyObject *result = NULL;
+    if (PyObject_GetBuffer(o_small, &sb.view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | PyBUF_ND) < 0) return NULL;
+    sb.held = 1;
+    const char *f = sb.view.format ? sb.view.format : "B";
+    if (*f == '<' || *f == '=' || *f == '@') f++;
+    if (sb.view.ndim != 2 || *f != 'f' || sb.view.itemsize != 4 || scale < 1) {
+        PyErr_SetString(PyExc_TypeError, "project: small must be a 2-D float32 array, scale >= 1");
+        goto done;
+    }
+    const Py_ssize_t sh = sb.view.shape[0], sw = sb.view.shape[1], n = sh * sw;
+    if (get(o_u, &ub, 'd', n, 1, "out_u") < 0 || get(o_v, &vb, 'd', n, 1, "out_v") < 0 ||
+        get(o_counts, &cb, 'd', -1, 1, "out_counts") < 0 || get(o_sums, &smb, 'd', items(&cb), 1, "out_sums") < 0)
+        goto done;
+    const Py_ssize_t cap = items(&cb) / 2;
+    const float *val = (const float *)sb.view.buf;
+    double *u = (double *)ub.view.buf, *v = (double *)vb.view.buf, *counts = (double *)cb.view.buf,
+           *sums = (double *)smb.view.buf;
+    const double c = cos(theta), sn = sin(theta), s = (double)scale;
+    const double half_s = (double)(scale - 1) / 2.0, cx = (double)(w - 1) / 2.0, cy = (double)(h - 1) / 2.0;
+    double vmin = INFINITY, umin = INFINITY;
+    for (Py_ssize_t i = 0; i < sh; i++) {
+        const double yf = (double)i * s + half_s - cy;
+        for (Py_ssize_t j = 0; j < sw; j++) {
+            const double xf = (double)j * s + half_s - cx;
+            const double uu = xf * c + yf * sn, vv = -xf * sn + yf * c;
+            u[i * sw + j] = uu;
+            v[i * sw + j] = vv;
+            const double qu = uu / s, qv = vv / s;
+            umin = qu < umin ? qu : umin;
+            vmin = qv < vmin ? qv : vmin;
+        }
+    }
+    const double base[2] = {floor(vmin), floor(umin)};
+    Py_ssize_t bins[2] = {0, 0};
+    for (Py_ssize_t k = 0; k < 2 * cap; k++) counts[k] = sums[k] = 0.0;
+    for (int g = 0; g < 2; g++) {
+        const double *coord = g == 0 ? v : u;
+        double *cn = counts + g * cap, *sm = sums + g * cap;
+        for (Py_ssize_t k = 0; k < n; k++) {
+            const Py_ssize_t b = (Py_ssize_t)(coord[k] / s - base[g]); /* non-negative: truncation is floor */
+            if (b < 0 || b >= cap) {
+                PyErr_SetString(PyExc_ValueError, "project: out_counts too short for the bins");
+                goto done;
+            }
+            cn[b] += 1.0;
+            sm[b] += (double)val[k];
+            if (b + 1 > bins[g]) bins[g] = b + 1;
+        }
+    }
+    result = Py_BuildValue("dndn", base[0], bins[0], base[1], bins[1]);
+done:
+    release(&sb);
+    release(&ub);
+    release(&vb);
+    release(&cb);
+    release(&smb);
+    return result;
+}
+
 /* ---------------------------------------------------------------- module */
 
 static PyMethodDef methods[] = {
     {"profiles", profiles, METH_VARARGS, "Sub-pixel edge positions of precise mode's profiles."},
     {"fine", fine, METH_VARARGS, "Precise mode's fine stage: every pass's profiles and line fits."},
+    {"project", project, METH_VARARGS, "Precise mode's coarse projections along the two grooves."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -40,3 +40,15 @@ def fine(
     out_points: npt.NDArray[np.float64],
     /,
 ) -> tuple[tuple[int, int, int, int], bool, int]: ...
+def project(
+    small: npt.NDArray[np.float32],
+    h: int,
+    w: int,
+    scale: int,
+    theta: float,
+    out_u: npt.NDArray[np.float64],
+    out_v: npt.NDArray[np.float64],
+    out_counts: npt.NDArray[np.float64],
+    out_sums: npt.NDArray[np.float64],
+    /,
+) -> tuple[float, int, float, int]: ...

@@ -20,6 +20,7 @@ from numpy.polynomial.polynomial import polyval2d
 from station.vision._edges import EDGES, Edge
 from station.vision._errors import EdgeNotFoundError, describe_missing, rotated_too_far
 from station.vision._image import Gray8
+from station.vision._kernels import compiled
 from station.vision._orientation import dominant_rotation_deg
 from station.vision._params import MeasureParams
 
@@ -246,6 +247,50 @@ def reduce_4x(gray: Gray8) -> npt.NDArray[np.float32]:
     return np.asarray(small, np.float32)
 
 
+Projection = tuple[int, FloatArray, FloatArray]
+
+
+def _projections(
+    small: npt.NDArray[np.float32], shape: tuple[int, int], theta: float
+) -> tuple[FloatArray, FloatArray, tuple[Projection, Projection]]:
+    """The reduced image projected along the two grooves: per reduced pixel its coordinates u (along
+    the horizontal groove) and v (along the vertical one), full-resolution px from the image centre;
+    then for v and for u the pixels binned by coordinate in reduced px (bin b: floor(coord / scale)
+    = base + b), each bin's count and sum. By the compiled kernel when selected (``_kernels``), else
+    numpy (the reference)."""
+    h, w = shape
+    s = COARSE_SCALE
+    ck = compiled()
+    if ck is not None:
+        u, v = np.empty(small.shape), np.empty(small.shape)
+        cap = math.ceil(math.hypot(h, w) / s) + 4
+        counts, sums = np.empty((2, cap)), np.empty((2, cap))
+        base_v, bins_v, base_u, bins_u = ck.project(
+            np.ascontiguousarray(small, np.float32), h, w, s, theta, u, v, counts, sums
+        )
+        return (
+            u,
+            v,
+            (
+                (int(base_v), counts[0, :bins_v], sums[0, :bins_v]),
+                (int(base_u), counts[1, :bins_u], sums[1, :bins_u]),
+            ),
+        )
+    xf, yf = _centred_grid(small.shape, (h, w))
+    c, sn = math.cos(theta), math.sin(theta)
+    u = xf * c + yf * sn  # along the horizontal groove
+    v = -xf * sn + yf * c  # along the vertical groove
+    values = small.ravel().astype(np.float64)
+    out: list[Projection] = []
+    for coord in (v, u):
+        q = coord.ravel() / s
+        base = math.floor(float(q.min()))
+        bins = (q - base).astype(np.intp)  # non-negative: truncation is floor
+        sums = np.asarray(np.bincount(bins, weights=values), np.float64)
+        out.append((base, np.bincount(bins).astype(np.float64), sums))
+    return u, v, (out[0], out[1])
+
+
 def coarse_cross(gray: Gray8, params: MeasureParams) -> CoarseCross:
     """Find the two grooves roughly (to about a pixel) on a reduced image."""
     h, w = gray.shape
@@ -261,19 +306,10 @@ def coarse_cross(gray: Gray8, params: MeasureParams) -> CoarseCross:
     if abs(rotation_deg) > max_rot:
         raise rotated_too_far(rotation_deg, max_rot)
     theta = math.radians(rotation_deg)
-    xf, yf = _centred_grid(small.shape, (h, w))
-    c, sn = math.cos(theta), math.sin(theta)
-    u = xf * c + yf * sn  # along the horizontal groove
-    v = -xf * sn + yf * c  # along the vertical groove
+    u, v, projections = _projections(small, (h, w), theta)
     offsets: dict[Edge, float] = {}
-    values = small.ravel().astype(np.float64)
-    grooves: tuple[tuple[FloatArray, Edge, Edge], ...] = ((v, "top", "bottom"), (u, "left", "right"))
-    for coord, falling, rising in grooves:
-        q = coord.ravel() / s
-        base = math.floor(float(q.min()))
-        bins = (q - base).astype(np.intp)  # non-negative: truncation is floor
-        counts = np.bincount(bins).astype(np.float64)
-        sums = np.bincount(bins, weights=values)
+    names: tuple[tuple[Edge, Edge], tuple[Edge, Edge]] = (("top", "bottom"), ("left", "right"))
+    for (base, counts, sums), (falling, rising) in zip(projections, names, strict=True):
         profile = sums / np.maximum(counts, 1.0)
         try:
             i_fall, i_rise = _band_edges(profile, counts)
