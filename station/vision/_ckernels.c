@@ -4,7 +4,7 @@
  *
  * Plain C on the buffer protocol: no numpy headers, nothing but Python.h and libm. Every array comes
  * in C-contiguous, of the item size checked below; outputs are numpy arrays the caller allocates.
- * Built with -ffp-contract=off: no fused multiply-add, so that each operation rounds as numpy's does.
+ * Built with -O3 -ffp-contract=off: no fused multiply-add, so that each operation rounds as numpy's does.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -698,12 +698,161 @@ done:
     return result;
 }
 
+/* ---------------------------------------------------------------- precise: the illumination fit */
+
+#define MAX_TERMS 32
+
+/* Least squares by the normal equations over the selected points (sel == NULL: all n), by
+ * Cholesky; 0 when the normal matrix is not positive definite. P: (n, terms) row-major (point-major:
+ * each point's update of the normal matrix is one vectorisable pass over independent sums). */
+static int normal_solve(const double *P, Py_ssize_t terms, Py_ssize_t n, const double *val, const uint8_t *sel,
+                        double *coef) {
+    double M[MAX_TERMS * MAX_TERMS], r[MAX_TERMS], L[MAX_TERMS * MAX_TERMS];
+    for (Py_ssize_t i = 0; i < terms * terms; i++) M[i] = 0.0;
+    for (Py_ssize_t i = 0; i < terms; i++) r[i] = 0.0;
+    for (Py_ssize_t k = 0; k < n; k++) {
+        if (sel && !sel[k]) continue;
+        const double *p = P + k * terms;
+        const double vk = val[k];
+        for (Py_ssize_t i = 0; i < terms; i++) {
+            const double pi = p[i];
+            double *row = M + i * terms;
+            for (Py_ssize_t j = 0; j < terms; j++) row[j] += pi * p[j];
+            r[i] += pi * vk;
+        }
+    }
+    for (Py_ssize_t i = 0; i < terms; i++)
+        for (Py_ssize_t j = 0; j <= i; j++) {
+            double acc = M[i * terms + j];
+            for (Py_ssize_t k = 0; k < j; k++) acc -= L[i * terms + k] * L[j * terms + k];
+            if (i == j) {
+                if (!(acc > 0.0)) return 0;
+                L[i * terms + i] = sqrt(acc);
+            } else
+                L[i * terms + j] = acc / L[j * terms + j];
+        }
+    double z[MAX_TERMS];
+    for (Py_ssize_t i = 0; i < terms; i++) {
+        double acc = r[i];
+        for (Py_ssize_t k = 0; k < i; k++) acc -= L[i * terms + k] * z[k];
+        z[i] = acc / L[i * terms + i];
+    }
+    for (Py_ssize_t i = terms - 1; i >= 0; i--) {
+        double acc = z[i];
+        for (Py_ssize_t k = i + 1; k < terms; k++) acc -= L[k * terms + i] * coef[k];
+        coef[i] = acc / L[i * terms + i];
+    }
+    return 1;
+}
+
+/* illumination(small, land, basis, out_coef) -> 1 fitted, 0 none (too few lands, or the fit ran
+ * wild), -1 singular (the caller's general solver decides)
+ *
+ * _coarse.fit_illumination: every fourth land pixel of the reduced image (float32 (sh, sw); land:
+ * bool (sh, sw)), the polynomial terms of basis ((terms, sh*sw) float64) fitted by least squares,
+ * refitted without the points beyond 3 robust sigmas (1.4826 MAD), normalised to mean 1 over the
+ * points kept. */
+static PyObject *illumination(PyObject *self, PyObject *args) {
+    PyObject *o_small, *o_land, *o_basis, *o_coef;
+    if (!PyArg_ParseTuple(args, "OOOO", &o_small, &o_land, &o_basis, &o_coef)) return NULL;
+    Buf sb = {0}, lb = {0}, bb = {0}, cb = {0};
+    PyObject *result = NULL;
+    double *A = NULL, *val = NULL, *resid = NULL, *work = NULL;
+    uint8_t *keep = NULL;
+    if (get(o_small, &sb, 'f', -1, 0, "small") < 0) return NULL;
+    const Py_ssize_t npx = items(&sb);
+    if (get(o_land, &lb, '?', npx, 0, "land") < 0 || get(o_basis, &bb, 'd', -1, 0, "basis") < 0 ||
+        get(o_coef, &cb, 'd', -1, 1, "out_coef") < 0)
+        goto done;
+    const Py_ssize_t terms = items(&cb);
+    if (terms < 1 || terms > MAX_TERMS || items(&bb) != terms * npx) {
+        PyErr_SetString(PyExc_ValueError, "illumination: basis must be (terms, pixels)");
+        goto done;
+    }
+    const float *small = (const float *)sb.view.buf;
+    const uint8_t *land = (const uint8_t *)lb.view.buf;
+    const double *basis = (const double *)bb.view.buf;
+    double *coef = (double *)cb.view.buf;
+    /* every fourth land pixel */
+    Py_ssize_t n = 0, seen = 0;
+    for (Py_ssize_t k = 0; k < npx; k++)
+        if (land[k]) n += (seen++ % 4) == 0;
+    if (n < 10 * terms) {
+        result = PyLong_FromLong(0);
+        goto done;
+    }
+    A = malloc(terms * n * sizeof(double));
+    val = malloc(n * sizeof(double));
+    resid = malloc(n * sizeof(double));
+    work = malloc(n * sizeof(double));
+    keep = malloc(n);
+    if (!A || !val || !resid || !work || !keep) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    Py_ssize_t m = 0;
+    seen = 0;
+    for (Py_ssize_t k = 0; k < npx; k++)
+        if (land[k] && (seen++ % 4) == 0) {
+            for (Py_ssize_t t = 0; t < terms; t++) A[m * terms + t] = basis[t * npx + k];
+            val[m++] = (double)small[k];
+        }
+    if (!normal_solve(A, terms, n, val, NULL, coef)) {
+        result = PyLong_FromLong(-1);
+        goto done;
+    }
+    for (Py_ssize_t k = 0; k < n; k++) {
+        double fit = 0.0;
+        for (Py_ssize_t t = 0; t < terms; t++) fit += coef[t] * A[k * terms + t];
+        resid[k] = val[k] - fit;
+        work[k] = resid[k];
+    }
+    const double med = select_k(work, n, n / 2);
+    for (Py_ssize_t k = 0; k < n; k++) work[k] = fabs(resid[k] - med);
+    double mad = select_k(work, n, n / 2);
+    mad = mad > 1e-6 ? mad : 1e-6;
+    const double band = 3.0 * 1.4826 * mad;
+    for (Py_ssize_t k = 0; k < n; k++) keep[k] = fabs(resid[k]) <= band;
+    if (!normal_solve(A, terms, n, val, keep, coef)) {
+        result = PyLong_FromLong(-1);
+        goto done;
+    }
+    double sum = 0.0, lo = INFINITY, count = 0.0;
+    for (Py_ssize_t k = 0; k < n; k++)
+        if (keep[k]) {
+            double fit = 0.0;
+            for (Py_ssize_t t = 0; t < terms; t++) fit += coef[t] * A[k * terms + t];
+            sum += fit;
+            lo = fit < lo ? fit : lo;
+            count += 1.0;
+        }
+    const double level = sum / count;
+    if (!(level > 0) || lo <= 0.05 * level) {
+        result = PyLong_FromLong(0); /* the fit ran wild (too few lands in view) */
+        goto done;
+    }
+    for (Py_ssize_t t = 0; t < terms; t++) coef[t] /= level;
+    result = PyLong_FromLong(1);
+done:
+    free(A);
+    free(val);
+    free(resid);
+    free(work);
+    free(keep);
+    release(&sb);
+    release(&lb);
+    release(&bb);
+    release(&cb);
+    return result;
+}
+
 /* ---------------------------------------------------------------- module */
 
 static PyMethodDef methods[] = {
     {"profiles", profiles, METH_VARARGS, "Sub-pixel edge positions of precise mode's profiles."},
     {"fine", fine, METH_VARARGS, "Precise mode's fine stage: every pass's profiles and line fits."},
     {"project", project, METH_VARARGS, "Precise mode's coarse projections along the two grooves."},
+    {"illumination", illumination, METH_VARARGS, "Precise mode's illumination fit over the lands."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -52,3 +52,10 @@ def project(
     out_sums: npt.NDArray[np.float64],
     /,
 ) -> tuple[float, int, float, int]: ...
+def illumination(
+    small: npt.NDArray[np.float32],
+    land: npt.NDArray[np.bool_],
+    basis: npt.NDArray[np.float64],
+    out_coef: npt.NDArray[np.float64],
+    /,
+) -> int: ...

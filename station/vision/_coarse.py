@@ -161,9 +161,18 @@ def fit_illumination(
     A degree-4 polynomial in the image coordinates is fitted to the land pixels of the reduced image
     (every fourth one is plenty), refitted once without scratches and glints (beyond 3 MAD) and
     normalised to mean 1 over the lands. None when too few land pixels are seen or the fit runs wild.
+    By the compiled kernel when selected (``_kernels``), else numpy (the reference).
     """
     sh, sw = small.shape
     basis = _small_basis((sh, sw), shape, scale)
+    ck = compiled()
+    if ck is not None:
+        coef = np.empty(len(_FLAT_TERMS))
+        status = ck.illumination(
+            np.ascontiguousarray(small, np.float32), np.ascontiguousarray(land, np.bool_), basis, coef
+        )
+        if status >= 0:  # else singular normal equations: numpy's general solver decides, below
+            return Illumination(coef, shape) if status else None
     idx = np.flatnonzero(land.ravel())[::4]
     if idx.size < 10 * len(_FLAT_TERMS):
         return None
