@@ -846,6 +846,158 @@ done:
     return result;
 }
 
+/* ---------------------------------------------------------------- paper: the TestBox */
+
+/* testbox(response, sign, axis, reverse, level, candidates, testheight, testwidth, skip, backoff,
+ *         out_points) -> count
+ *
+ * _testbox.segment_edge_sparse for one edge: of the candidates (flat indices of the float32
+ * response (h, w), ascending, each beyond the level in the edge's polarity sign), those meeting the
+ * TestBox's rules 2 and 3 (column A: C is the extreme of the 2 testheight + 1 values along the scan,
+ * those inside the image; columns E and F, testwidth before and after along the edge, each hold a
+ * value beyond the level), then the walk of section 3.2.4 over them (_testbox.scan_columns: every
+ * skip-th column of the scan view, the first accepted row at or after the start, the start backing
+ * off by backoff rows after a hit, row 0 after a miss). axis 0 scans down the rows (top; bottom when
+ * reversed, from the bottom up), axis 1 along the columns (left; right reversed). out_points:
+ * (>= columns, 2) int64 image (x, y), in the walk's order. */
+static PyObject *testbox(PyObject *self, PyObject *args) {
+    PyObject *o_r, *o_c, *o_out;
+    double sign, level;
+    int axis, reverse, th, tw, skip, backoff;
+    if (!PyArg_ParseTuple(args, "OdipdOiiiiO", &o_r, &sign, &axis, &reverse, &level, &o_c, &th, &tw, &skip,
+                          &backoff, &o_out))
+        return NULL;
+    Buf rb = {0}, cb = {0}, ob = {0};
+    PyObject *result = NULL;
+    int64_t *rows = NULL, *start_of = NULL;
+    uint8_t *ok = NULL;
+    if (PyObject_GetBuffer(o_r, &rb.view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | PyBUF_ND) < 0) return NULL;
+    rb.held = 1;
+    const char *f = rb.view.format ? rb.view.format : "B";
+    if (*f == '<' || *f == '=' || *f == '@') f++;
+    if (rb.view.ndim != 2 || *f != 'f' || rb.view.itemsize != 4 || th < 0 || tw < 0 || skip < 1 || backoff < 0 ||
+        (axis != 0 && axis != 1)) {
+        PyErr_SetString(PyExc_ValueError, "testbox: a 2-D float32 response and valid TestBox parameters");
+        goto done;
+    }
+    const Py_ssize_t h = rb.view.shape[0], w = rb.view.shape[1];
+    if (get(o_c, &cb, 'q', -1, 0, "candidates") < 0 || get(o_out, &ob, 'q', -1, 1, "out_points") < 0) goto done;
+    const Py_ssize_t n = items(&cb);
+    const Py_ssize_t n_across = axis == 0 ? h : w, n_along = axis == 0 ? w : h;
+    const Py_ssize_t s_across = axis == 0 ? w : 1, s_along = axis == 0 ? 1 : w;
+    if (items(&ob) < 2 * ((n_along + skip - 1) / skip)) {
+        PyErr_SetString(PyExc_ValueError, "testbox: out_points too short");
+        goto done;
+    }
+    const float *r = (const float *)rb.view.buf;
+    const int64_t *cand = (const int64_t *)cb.view.buf;
+    int64_t *out = (int64_t *)ob.view.buf;
+    const float lv = (float)level;
+    if ((double)lv != level) {
+        PyErr_SetString(PyExc_ValueError, "testbox: level must be exactly a float32 value");
+        goto done;
+    }
+    const int up = sign > 0;
+    ok = malloc(n > 0 ? n : 1);
+    rows = malloc((n > 0 ? n : 1) * sizeof(int64_t));
+    start_of = calloc(n_along + 1, sizeof(int64_t));
+    if (!ok || !rows || !start_of) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    for (Py_ssize_t i = 0; i < n; i++) {
+        const int64_t fl = cand[i];
+        if (fl < 0 || fl >= h * w) {
+            PyErr_SetString(PyExc_ValueError, "testbox: candidate outside the response");
+            goto done;
+        }
+        const int64_t y = fl / w, x = fl % w;
+        const int64_t across = axis == 0 ? y : x, along = axis == 0 ? x : y;
+        const float value = r[fl];
+        int keep = 1;
+        /* rule 2: C is the extreme of column A (the positions inside the image) */
+        for (int k = -th; k <= th && keep; k++) {
+            const int64_t pos = across + k;
+            if (pos < 0 || pos >= n_across) continue;
+            const float v = r[fl + k * s_across];
+            keep = up ? v <= value : v >= value;
+        }
+        /* rule 3: columns E and F each hold a value beyond the level */
+        keep = keep && along >= tw && along < n_along - tw;
+        for (int side = -1; side <= 1 && keep; side += 2) {
+            const int64_t centre = fl + side * tw * s_along;
+            int any = 0;
+            for (int k = -th; k <= th && !any; k++) {
+                const int64_t pos = across + k;
+                if (pos < 0 || pos >= n_across) continue;
+                const float v = r[centre + k * s_across];
+                any = up ? v > lv : v < -lv;
+            }
+            keep = any;
+        }
+        ok[i] = (uint8_t)keep;
+        if (keep) start_of[along + 1]++;
+    }
+    /* the accepted rows of each scan column, ascending (counting sort by column; within a column the
+     * candidates' flat order is monotonic in the row) */
+    for (Py_ssize_t c = 0; c < n_along; c++) start_of[c + 1] += start_of[c];
+    {
+        int64_t *fill = malloc((n_along + 1) * sizeof(int64_t));
+        if (!fill) {
+            PyErr_NoMemory();
+            goto done;
+        }
+        memcpy(fill, start_of, (n_along + 1) * sizeof(int64_t));
+        for (Py_ssize_t i = 0; i < n; i++) {
+            if (!ok[i]) continue;
+            const int64_t y = cand[i] / w, x = cand[i] % w;
+            const int64_t across = axis == 0 ? y : x, along = axis == 0 ? x : y;
+            rows[fill[along]++] = reverse ? n_across - 1 - across : across;
+        }
+        free(fill);
+    }
+    if (reverse)
+        for (Py_ssize_t c = 0; c < n_along; c++)
+            for (int64_t a = start_of[c], b = start_of[c + 1] - 1; a < b; a++, b--) {
+                const int64_t t = rows[a];
+                rows[a] = rows[b];
+                rows[b] = t;
+            }
+    /* the walk */
+    Py_ssize_t count = 0;
+    int64_t start = 0;
+    for (Py_ssize_t c = 0; c < n_along; c += skip) {
+        int64_t k = start_of[c];
+        while (k < start_of[c + 1] && rows[k] < start) k++;
+        if (k == start_of[c + 1]) {
+            start = 0;
+            continue;
+        }
+        const int64_t row = rows[k];
+        start = row - backoff > 0 ? row - backoff : 0;
+        int64_t x, y;
+        if (axis == 0) {
+            x = c;
+            y = reverse ? h - 1 - row : row;
+        } else {
+            x = reverse ? w - 1 - row : row;
+            y = c;
+        }
+        out[2 * count] = x;
+        out[2 * count + 1] = y;
+        count++;
+    }
+    result = PyLong_FromSsize_t(count);
+done:
+    free(ok);
+    free(rows);
+    free(start_of);
+    release(&rb);
+    release(&cb);
+    release(&ob);
+    return result;
+}
+
 /* ---------------------------------------------------------------- module */
 
 static PyMethodDef methods[] = {
@@ -853,6 +1005,7 @@ static PyMethodDef methods[] = {
     {"fine", fine, METH_VARARGS, "Precise mode's fine stage: every pass's profiles and line fits."},
     {"project", project, METH_VARARGS, "Precise mode's coarse projections along the two grooves."},
     {"illumination", illumination, METH_VARARGS, "Precise mode's illumination fit over the lands."},
+    {"testbox", testbox, METH_VARARGS, "Paper mode's TestBox segmentation of one edge."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -59,3 +59,17 @@ def illumination(
     out_coef: npt.NDArray[np.float64],
     /,
 ) -> int: ...
+def testbox(
+    response: npt.NDArray[np.float32],
+    sign: float,
+    axis: int,
+    reverse: bool,
+    level: float,
+    candidates: npt.NDArray[np.int64],
+    testheight: int,
+    testwidth: int,
+    skip: int,
+    backoff: int,
+    out_points: npt.NDArray[np.int64],
+    /,
+) -> int: ...
