@@ -998,6 +998,153 @@ done:
     return result;
 }
 
+/* ---------------------------------------------------------------- paper: moments and the line fit */
+
+static double pearson(double n, double st, double ss, double stt, double sts, double sss) {
+    const double vt = n * stt - st * st, vs = n * sss - ss * ss;
+    if (vt <= 0 || vs <= 0) return 0.0;
+    return (n * sts - st * ss) / sqrt(vt * vs);
+}
+
+/* edge_fit(gray, pixels, vertical, corr_tol, change_tol, max_removals, min_points, out_points,
+ *          out_kept) -> (valid, status, slope, intercept, removed, rms)
+ *
+ * _paper._edge_fit's stages 5-6 for one edge: the 3x3 raw-intensity moment of every segmented pixel
+ * ((N, 2) int64 (x, y); _moment.intensity_moment: those with a whole neighbourhood inside the image
+ * and a non-zero sum are valid, written in order to out_points (N, 2) float64), then the seed's
+ * recursive fit of across = slope * along + intercept (_linefit.recursive_fit: the farthest point
+ * removed while the correlation is below corr_tol or its removal improves it by more than change_tol,
+ * at most max_removals, never below min_points), out_kept (N,) bool marking the valid points kept.
+ * status: 0 fitted, 1 fewer than min_points valid points, 2 the points are all in one column. */
+static PyObject *edge_fit(PyObject *self, PyObject *args) {
+    PyObject *o_g, *o_p, *o_pts, *o_kept;
+    int vertical, max_removals, min_points;
+    double corr_tol, change_tol;
+    if (!PyArg_ParseTuple(args, "OOpddiiOO", &o_g, &o_p, &vertical, &corr_tol, &change_tol, &max_removals,
+                          &min_points, &o_pts, &o_kept))
+        return NULL;
+    Buf gb = {0}, pb = {0}, ob = {0}, kb = {0};
+    PyObject *result = NULL;
+    double *t = NULL, *s = NULL;
+    if (PyObject_GetBuffer(o_g, &gb.view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | PyBUF_ND) < 0) return NULL;
+    gb.held = 1;
+    const char *f = gb.view.format ? gb.view.format : "B";
+    if (*f == '<' || *f == '=' || *f == '@') f++;
+    if (gb.view.ndim != 2 || *f != 'B' || gb.view.itemsize != 1) {
+        PyErr_SetString(PyExc_TypeError, "edge_fit: gray must be a 2-D uint8 array");
+        goto done;
+    }
+    const Py_ssize_t h = gb.view.shape[0], w = gb.view.shape[1];
+    if (get(o_p, &pb, 'q', -1, 0, "pixels") < 0) goto done;
+    const Py_ssize_t N = items(&pb) / 2;
+    if (get(o_pts, &ob, 'd', 2 * N, 1, "out_points") < 0 || get(o_kept, &kb, '?', N, 1, "out_kept") < 0) goto done;
+    const uint8_t *I = (const uint8_t *)gb.view.buf;
+    const int64_t *px = (const int64_t *)pb.view.buf;
+    double *pts = (double *)ob.view.buf;
+    uint8_t *kept = (uint8_t *)kb.view.buf;
+    Py_ssize_t n = 0;
+    for (Py_ssize_t i = 0; i < N; i++) {
+        const int64_t x = px[2 * i], y = px[2 * i + 1];
+        if (x < 1 || x > w - 2 || y < 1 || y > h - 2) continue;
+        int64_t total = 0, mx = 0, my = 0;
+        for (int dy = -1; dy <= 1; dy++)
+            for (int dx = -1; dx <= 1; dx++) {
+                const int64_t v = I[(y + dy) * w + (x + dx)];
+                total += v;
+                mx += dx * v;
+                my += dy * v;
+            }
+        if (total <= 0) continue;
+        pts[2 * n] = (double)x + (double)mx / (double)total;
+        pts[2 * n + 1] = (double)y + (double)my / (double)total;
+        n++;
+    }
+    for (Py_ssize_t i = 0; i < N; i++) kept[i] = 0;
+    if (n < min_points || n < 3) {
+        result = Py_BuildValue("nidddd", n, 1, 0.0, 0.0, 0.0, 0.0);
+        goto done;
+    }
+    t = malloc(n * sizeof(double));
+    s = malloc(n * sizeof(double));
+    if (!t || !s) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    double t0 = 0.0, s0 = 0.0;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        t0 += pts[2 * i + (vertical ? 1 : 0)];
+        s0 += pts[2 * i + (vertical ? 0 : 1)];
+    }
+    t0 /= (double)n;
+    s0 /= (double)n;
+    double sn = (double)n, st = 0.0, ss = 0.0, stt = 0.0, sts = 0.0, sss = 0.0;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        t[i] = pts[2 * i + (vertical ? 1 : 0)] - t0;
+        s[i] = pts[2 * i + (vertical ? 0 : 1)] - s0;
+        st += t[i];
+        ss += s[i];
+        stt += t[i] * t[i];
+        sts += t[i] * s[i];
+        sss += s[i] * s[i];
+        kept[i] = 1;
+    }
+    int removed = 0, status = 0;
+    double slope = 0.0, intercept = 0.0;
+    for (;;) {
+        const double den = sn * stt - st * st;
+        if (den <= 0) {
+            status = 2;
+            break;
+        }
+        slope = (sn * sts - st * ss) / den;
+        intercept = (ss - slope * st) / sn;
+        if (!(removed < max_removals && sn > min_points)) break;
+        Py_ssize_t k = 0;
+        double best = -INFINITY;
+        for (Py_ssize_t i = 0; i < n; i++) {
+            const double d = kept[i] ? fabs(s[i] - (slope * t[i] + intercept)) : -1.0;
+            if (d > best) {
+                best = d;
+                k = i;
+            }
+        }
+        const double tk = t[k], sk = s[k];
+        const double r_all = fabs(pearson(sn, st, ss, stt, sts, sss));
+        const double r_less =
+            fabs(pearson(sn - 1, st - tk, ss - sk, stt - tk * tk, sts - tk * sk, sss - sk * sk));
+        if (!(r_all < corr_tol || r_less - r_all > change_tol)) break;
+        sn -= 1;
+        st -= tk;
+        ss -= sk;
+        stt -= tk * tk;
+        sts -= tk * sk;
+        sss -= sk * sk;
+        kept[k] = 0;
+        removed++;
+    }
+    if (status) {
+        result = Py_BuildValue("nidddd", n, status, 0.0, 0.0, 0.0, 0.0);
+        goto done;
+    }
+    const double norm = sqrt(1.0 + slope * slope);
+    double sq = 0.0;
+    for (Py_ssize_t i = 0; i < n; i++)
+        if (kept[i]) {
+            const double r = (s[i] - (slope * t[i] + intercept)) / norm;
+            sq += r * r;
+        }
+    const double rms = sqrt(sq / sn);
+    result = Py_BuildValue("nidddd", n, 0, slope, intercept + s0 - slope * t0, (double)removed, rms);
+done:
+    free(t);
+    free(s);
+    release(&gb);
+    release(&pb);
+    release(&ob);
+    release(&kb);
+    return result;
+}
+
 /* ---------------------------------------------------------------- module */
 
 static PyMethodDef methods[] = {
@@ -1006,6 +1153,7 @@ static PyMethodDef methods[] = {
     {"project", project, METH_VARARGS, "Precise mode's coarse projections along the two grooves."},
     {"illumination", illumination, METH_VARARGS, "Precise mode's illumination fit over the lands."},
     {"testbox", testbox, METH_VARARGS, "Paper mode's TestBox segmentation of one edge."},
+    {"edge_fit", edge_fit, METH_VARARGS, "Paper mode's moments and recursive line fit of one edge."},
     {NULL, NULL, 0, NULL},
 };
 

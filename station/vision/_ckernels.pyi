@@ -73,3 +73,15 @@ def testbox(
     out_points: npt.NDArray[np.int64],
     /,
 ) -> int: ...
+def edge_fit(
+    gray: npt.NDArray[np.uint8],
+    pixels: npt.NDArray[np.int64],
+    vertical: bool,
+    corr_tol: float,
+    change_tol: float,
+    max_removals: int,
+    min_points: int,
+    out_points: npt.NDArray[np.float64],
+    out_kept: npt.NDArray[np.bool_],
+    /,
+) -> tuple[int, int, float, float, float, float]: ...

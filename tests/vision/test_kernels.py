@@ -1,8 +1,8 @@
 """The compiled kernels (``station/vision/_ckernels.c``) against the numpy reference (issue 12).
 
 The numpy code stays the reference: on the benchmark's image sets both give the same results within
-1e-9 px (centre, corners, lines), the same points in every fit and the same errors, word for word.
-Paper mode's results are pinned for both in ``test_paper_reference``.
+1e-9 px (centre, corners, lines), the same points in every fit and the same errors, word for word, in
+both modes. Paper mode's results are also pinned, for both, in ``test_paper_reference``.
 """
 
 from __future__ import annotations
@@ -67,9 +67,12 @@ def _assert_same(out: dict[str, object], name: str) -> None:
 
 
 @pytest.mark.skipif(not available(), reason="the compiled kernels were not built")
+@pytest.mark.parametrize("mode", ["precise", "paper"])
 @pytest.mark.parametrize("set_name", list(paper_reference()["sets"]))
-def test_precise_kernels_equal_the_numpy_reference_on_the_benchmark(bench_sets: Path, set_name: str) -> None:
-    params = MeasureParams()
+def test_kernels_equal_the_numpy_reference_on_the_benchmark(
+    bench_sets: Path, set_name: str, mode: str
+) -> None:
+    params = MeasureParams(mode=mode)
     files = sorted((bench_sets / set_name).glob("*.png"))
     assert files
     for f in files:
