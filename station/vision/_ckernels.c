@@ -1145,6 +1145,170 @@ done:
     return result;
 }
 
+/* ---------------------------------------------------------------- the cross check (_sanity) */
+
+/* numpy's pairwise summation of float32 values (its add.reduce over a contiguous run) */
+static float pairwise_f32(const float *a, Py_ssize_t n) {
+    if (n < 8) {
+        float res = 0.0f;
+        for (Py_ssize_t i = 0; i < n; i++) res += a[i];
+        return res;
+    }
+    if (n <= 128) {
+        float r[8];
+        for (int j = 0; j < 8; j++) r[j] = a[j];
+        Py_ssize_t i;
+        for (i = 8; i < n - (n % 8); i += 8)
+            for (int j = 0; j < 8; j++) r[j] += a[i + j];
+        float res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]));
+        for (; i < n; i++) res += a[i];
+        return res;
+    }
+    Py_ssize_t n2 = n / 2;
+    n2 -= n2 % 8;
+    return pairwise_f32(a, n2) + pairwise_f32(a + n2, n - n2);
+}
+
+/* contrast(values, out) -> None
+ *
+ * _sanity._Groove's contrast of each step along a groove from its remapped samples (float32 (11, T):
+ * 5 across the groove, then 6 on the lands, NaN outside the frame): the mean of the lands seen minus
+ * the groove's brightest sample (NaN when any groove sample is unseen, or no land is). */
+static PyObject *contrast(PyObject *self, PyObject *args) {
+    PyObject *o_v, *o_out;
+    if (!PyArg_ParseTuple(args, "OO", &o_v, &o_out)) return NULL;
+    Buf vb = {0}, ob = {0};
+    PyObject *result = NULL;
+    if (get(o_v, &vb, 'f', -1, 0, "values") < 0) return NULL;
+    if (items(&vb) % 11 != 0) {
+        PyErr_SetString(PyExc_ValueError, "contrast: values must be (11, steps)");
+        goto done;
+    }
+    const Py_ssize_t T = items(&vb) / 11;
+    if (get(o_out, &ob, 'd', T, 1, "out") < 0) goto done;
+    const float *v = (const float *)vb.view.buf;
+    double *out = (double *)ob.view.buf;
+    for (Py_ssize_t j = 0; j < T; j++) {
+        float sum = 0.0f, groove = v[j];
+        int64_t count = 0;
+        for (int i = 5; i < 11; i++) {
+            const float x = v[i * T + j];
+            if (x == x) {
+                sum += x;
+                count++;
+            }
+        }
+        for (int i = 1; i < 5; i++) {
+            const float x = v[i * T + j];
+            groove = (groove != groove || x != x) ? NAN : (x > groove ? x : groove); /* np.max keeps NaN */
+        }
+        out[j] = count > 0 ? (double)sum / (double)count - (double)groove : NAN;
+    }
+    Py_INCREF(Py_None);
+    result = Py_None;
+done:
+    release(&vb);
+    release(&ob);
+    return result;
+}
+
+/* second_band(turned, row, width, depth_fraction) -> distance in reduced rows, or None
+ *
+ * _sanity._second_band: the profile across the groove (each row of the turned image averaged over its
+ * finite values, rows at least a quarter seen), its baseline (the median of the rows clear of the
+ * groove), the groove's depth below it, and the first run of other rows darker than the baseline by
+ * depth_fraction of that depth and at least max(2, width / 3) rows long: its centre's distance from
+ * the groove's row. */
+static PyObject *second_band(PyObject *self, PyObject *args) {
+    PyObject *o_t;
+    double row, width, fraction;
+    if (!PyArg_ParseTuple(args, "Oddd", &o_t, &row, &width, &fraction)) return NULL;
+    Buf tb = {0};
+    PyObject *result = NULL;
+    double *profile = NULL, *work = NULL;
+    uint8_t *seen = NULL;
+    if (PyObject_GetBuffer(o_t, &tb.view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | PyBUF_ND) < 0) return NULL;
+    tb.held = 1;
+    const char *f = tb.view.format ? tb.view.format : "B";
+    if (*f == '<' || *f == '=' || *f == '@') f++;
+    if (tb.view.ndim != 2 || *f != 'f' || tb.view.itemsize != 4) {
+        PyErr_SetString(PyExc_TypeError, "second_band: a 2-D float32 image");
+        goto done;
+    }
+    const Py_ssize_t h = tb.view.shape[0], w = tb.view.shape[1];
+    const float *img = (const float *)tb.view.buf;
+    profile = malloc((h > 0 ? h : 1) * sizeof(double));
+    work = malloc((h > 0 ? h : 1) * sizeof(double));
+    seen = malloc(h > 0 ? h : 1);
+    if (!profile || !work || !seen) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    for (Py_ssize_t i = 0; i < h; i++) {
+        const float *r = img + i * w;
+        /* add.reduce(where=finite): the identity, then every run of finite values by pairwise sums */
+        float total = 0.0f;
+        int64_t count = 0;
+        Py_ssize_t j = 0;
+        while (j < w) {
+            while (j < w && r[j] != r[j]) j++;
+            const Py_ssize_t a = j;
+            while (j < w && r[j] == r[j]) j++;
+            if (j > a) {
+                total += pairwise_f32(r + a, j - a);
+                count += j - a;
+            }
+        }
+        seen[i] = (double)count >= 0.25 * (double)w;
+        profile[i] = seen[i] ? (double)total / (double)(count > 1 ? count : 1) : NAN;
+        seen[i] = seen[i] && isfinite(profile[i]);
+    }
+    const double half = 0.5 * width + 1.0;
+    int any_band = 0;
+    Py_ssize_t n_around = 0;
+    double band_min = INFINITY;
+    for (Py_ssize_t i = 0; i < h; i++) {
+        if (!seen[i]) continue;
+        const double d = fabs((double)i - row);
+        if (d <= half) {
+            any_band = 1;
+            band_min = profile[i] < band_min ? profile[i] : band_min;
+        } else if (d > 2 * half)
+            work[n_around++] = profile[i];
+    }
+    if (!any_band || n_around < 4) goto none;
+    {
+        const Py_ssize_t k = n_around - 1 < (Py_ssize_t)(0.5 * n_around) ? n_around - 1 : (Py_ssize_t)(0.5 * n_around);
+        const double baseline = select_k(work, n_around, k);
+        const double depth = baseline - band_min;
+        if (depth <= 0) goto none;
+        const double limit = baseline - fraction * depth, need = width / 3.0 > 2.0 ? width / 3.0 : 2.0;
+        Py_ssize_t i = 0;
+        while (i < h) {
+            const int dark_i = seen[i] && fabs((double)i - row) > 2 * half && profile[i] < limit;
+            if (!dark_i) {
+                i++;
+                continue;
+            }
+            const Py_ssize_t a = i;
+            while (i < h && seen[i] && fabs((double)i - row) > 2 * half && profile[i] < limit) i++;
+            if ((double)(i - a) >= need) {
+                result = PyFloat_FromDouble(fabs((double)(a + i - 1) / 2.0 - row));
+                goto done;
+            }
+        }
+    }
+none:
+    Py_INCREF(Py_None);
+    result = Py_None;
+done:
+    free(profile);
+    free(work);
+    free(seen);
+    release(&tb);
+    return result;
+}
+
 /* ---------------------------------------------------------------- module */
 
 static PyMethodDef methods[] = {
@@ -1154,6 +1318,8 @@ static PyMethodDef methods[] = {
     {"illumination", illumination, METH_VARARGS, "Precise mode's illumination fit over the lands."},
     {"testbox", testbox, METH_VARARGS, "Paper mode's TestBox segmentation of one edge."},
     {"edge_fit", edge_fit, METH_VARARGS, "Paper mode's moments and recursive line fit of one edge."},
+    {"contrast", contrast, METH_VARARGS, "The cross check's contrast of each step along a groove."},
+    {"second_band", second_band, METH_VARARGS, "The cross check's search for a second groove."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -34,6 +34,7 @@ import numpy.typing as npt
 
 from station.vision._edges import Edge
 from station.vision._errors import MeasurementError
+from station.vision._kernels import compiled
 
 FloatArray = npt.NDArray[np.float64]
 Line = tuple[float, float, float]
@@ -116,12 +117,17 @@ class _Groove:
         values = cv2.remap(
             small, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan
         )
-        lands = values[5:]
-        seen = lands == lands  # not NaN: inside the frame
-        count = seen.sum(axis=0)
-        mean_land = np.add.reduce(lands, axis=0, where=seen) / np.maximum(count, 1)
-        groove = values[:5].max(axis=0)  # NaN where any of it is outside the frame: not seen
-        self.contrast = np.where(count > 0, mean_land - groove, np.nan)
+        ck = compiled()
+        if ck is not None:  # the same arithmetic in one pass (``_kernels``)
+            self.contrast = np.empty(values.shape[1])
+            ck.contrast(np.ascontiguousarray(values, np.float32), self.contrast)
+        else:
+            lands = values[5:]
+            seen = lands == lands  # not NaN: inside the frame
+            count = seen.sum(axis=0)
+            mean_land = np.add.reduce(lands, axis=0, where=seen) / np.maximum(count, 1)
+            groove = values[:5].max(axis=0)  # NaN where any of it is outside the frame: not seen
+            self.contrast = np.where(count > 0, mean_land - groove, np.nan)
         self.distance = t * _REDUCE  # along the groove from the crossing (px)
         # the coarse image turned so that the groove runs along its rows
         ch, cw = coarse.shape
@@ -135,7 +141,12 @@ class _Groove:
 
 
 def _second_band(g: _Groove) -> float | None:
-    """Distance (px) from the measured groove of another dark band parallel to it, if any."""
+    """Distance (px) from the measured groove of another dark band parallel to it, if any. By the
+    compiled kernel when selected (``_kernels``), else numpy (the reference)."""
+    ck = compiled()
+    if ck is not None:
+        away = ck.second_band(np.ascontiguousarray(g.turned, np.float32), g.row, g.width, SECOND_GROOVE_DEPTH)
+        return None if away is None else away * _COARSE
     finite = g.turned == g.turned  # not NaN: inside the frame
     count = finite.sum(axis=1)
     total = np.add.reduce(g.turned, axis=1, where=finite)
