@@ -1309,6 +1309,84 @@ done:
     return result;
 }
 
+/* arms(contrast_h, distance_h, contrast_v, distance_v, width_h, width_v, present_fraction, tolerance,
+ *      out_farthest) -> bits
+ *
+ * _sanity._missing_arms: the steps of each arm (right, left on the horizontal groove; lower, upper
+ * on the vertical one) from past the perpendicular groove's rounded corners on; a step shows the
+ * groove when its contrast reaches present_fraction of the upper quartile of every seen step's (at
+ * least 5); an arm is missing (bit i) when its farthest seen step lies more than tolerance beyond its
+ * farthest groove step (out_farthest[i]). */
+static PyObject *arms(PyObject *self, PyObject *args) {
+    PyObject *o_ch, *o_dh, *o_cv, *o_dv, *o_out;
+    double wh, wv, fraction, tolerance;
+    if (!PyArg_ParseTuple(args, "OOOOddddO", &o_ch, &o_dh, &o_cv, &o_dv, &wh, &wv, &fraction, &tolerance, &o_out))
+        return NULL;
+    Buf chb = {0}, dhb = {0}, cvb = {0}, dvb = {0}, ob = {0};
+    PyObject *result = NULL;
+    double *work = NULL;
+    if (get(o_ch, &chb, 'd', -1, 0, "contrast_h") < 0 || get(o_dh, &dhb, 'd', items(&chb), 0, "distance_h") < 0 ||
+        get(o_cv, &cvb, 'd', -1, 0, "contrast_v") < 0 || get(o_dv, &dvb, 'd', items(&cvb), 0, "distance_v") < 0 ||
+        get(o_out, &ob, 'd', 4, 1, "out_farthest") < 0)
+        goto done;
+    const double *con[2] = {(const double *)chb.view.buf, (const double *)cvb.view.buf};
+    const double *dist[2] = {(const double *)dhb.view.buf, (const double *)dvb.view.buf};
+    const Py_ssize_t len[2] = {items(&chb), items(&cvb)};
+    const int which[4] = {0, 0, 1, 1};
+    const double sign[4] = {1.0, -1.0, 1.0, -1.0};
+    const double widths[2] = {wh, wv};
+    double start[4];
+    double *far = (double *)ob.view.buf;
+    work = malloc((2 * (len[0] + len[1]) + 1) * sizeof(double));
+    if (!work) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    Py_ssize_t n = 0;
+    for (int a = 0; a < 4; a++) {
+        const int g = which[a];
+        const double other = widths[1 - g], width = widths[g];
+        const double q = 0.25 * width;
+        start[a] = 0.5 * other + (6.0 > q ? 6.0 : q);
+        for (Py_ssize_t k = 0; k < len[g]; k++)
+            if (sign[a] * dist[g][k] >= start[a] && isfinite(con[g][k])) work[n++] = con[g][k];
+    }
+    if (n == 0) {
+        result = PyLong_FromLong(0);
+        goto done;
+    }
+    const Py_ssize_t kq = n - 1 < (Py_ssize_t)(0.75 * n) ? n - 1 : (Py_ssize_t)(0.75 * n);
+    const double quart = select_k(work, n, kq);
+    const double threshold = fraction * (quart > 5.0 ? quart : 5.0);
+    long bits = 0;
+    for (int a = 0; a < 4; a++) {
+        const int g = which[a];
+        double seen_max = -INFINITY, present_max = -INFINITY;
+        int any_seen = 0, any_present = 0;
+        for (Py_ssize_t k = 0; k < len[g]; k++) {
+            const double t = sign[a] * dist[g][k], c = con[g][k];
+            if (!(t >= start[a]) || !isfinite(c)) continue;
+            any_seen = 1;
+            seen_max = t > seen_max ? t : seen_max;
+            if (c >= threshold) {
+                any_present = 1;
+                present_max = t > present_max ? t : present_max;
+            }
+        }
+        far[a] = any_present ? present_max : start[a];
+        if (any_seen && seen_max - far[a] > tolerance) bits |= 1L << a;
+    }
+    result = PyLong_FromLong(bits);
+done:
+    free(work);
+    release(&chb);
+    release(&dhb);
+    release(&cvb);
+    release(&dvb);
+    release(&ob);
+    return result;
+}
+
 /* ---------------------------------------------------------------- module */
 
 static PyMethodDef methods[] = {
@@ -1320,6 +1398,7 @@ static PyMethodDef methods[] = {
     {"edge_fit", edge_fit, METH_VARARGS, "Paper mode's moments and recursive line fit of one edge."},
     {"contrast", contrast, METH_VARARGS, "The cross check's contrast of each step along a groove."},
     {"second_band", second_band, METH_VARARGS, "The cross check's search for a second groove."},
+    {"arms", arms, METH_VARARGS, "The cross check's arms that end inside the field of view."},
     {NULL, NULL, 0, NULL},
 };
 

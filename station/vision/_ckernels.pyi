@@ -89,3 +89,15 @@ def contrast(values: npt.NDArray[np.float32], out: npt.NDArray[np.float64], /) -
 def second_band(
     turned: npt.NDArray[np.float32], row: float, width: float, depth_fraction: float, /
 ) -> float | None: ...
+def arms(
+    contrast_h: npt.NDArray[np.float64],
+    distance_h: npt.NDArray[np.float64],
+    contrast_v: npt.NDArray[np.float64],
+    distance_v: npt.NDArray[np.float64],
+    width_h: float,
+    width_v: float,
+    present_fraction: float,
+    tolerance: float,
+    out_farthest: npt.NDArray[np.float64],
+    /,
+) -> int: ...

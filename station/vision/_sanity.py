@@ -188,32 +188,7 @@ def check_single_cross(
     # turn the horizontal groove onto the rows; the vertical one onto the rows too (a further 90 deg)
     horizontal = _Groove(small, coarse, math.degrees(math.atan2(h_dir[1], h_dir[0])), centre, widths[0])
     vertical = _Groove(small, coarse, math.degrees(math.atan2(v_dir[1], v_dir[0])), centre, widths[1])
-    arms = [
-        ("right", horizontal, 1.0, widths[1], widths[0]),
-        ("left", horizontal, -1.0, widths[1], widths[0]),
-        ("lower", vertical, 1.0, widths[0], widths[1]),
-        ("upper", vertical, -1.0, widths[0], widths[1]),
-    ]
-    steps = []
-    for name, g, sign, other, width in arms:
-        start = 0.5 * other + max(6.0, 0.25 * width)  # past the perpendicular groove's rounded corners
-        t = sign * g.distance
-        on_arm = t >= start
-        steps.append((name, t[on_arm], g.contrast[on_arm], start))
-    every = np.concatenate([c for *_, c, _ in steps])
-    every = every[np.isfinite(every)]
-    if every.size == 0:
-        return
-    threshold = PRESENT_FRACTION * max(_quantile(every, 0.75), 5.0)
-    missing = []
-    for name, t, contrast, start in steps:
-        seen = np.isfinite(contrast)
-        if not seen.any():
-            continue  # too short to be seen: its crossing is at the border
-        present = seen & (contrast >= threshold)
-        farthest = float(t[present].max()) if present.any() else start
-        if float(t[seen].max()) - farthest > BORDER_TOLERANCE_PX + STEP_PX:
-            missing.append((name, farthest))
+    missing = _missing_arms(horizontal, vertical, widths)
     if missing:
         count = {1: "only three arms", 2: "only two arms", 3: "only one arm", 4: "no arm"}[len(missing)]
         detail = ", ".join(f"the {n} arm ends {d:.0f} px from the crossing" for n, d in missing)
@@ -228,3 +203,53 @@ def check_single_cross(
                 f"more than one crossing in the frame: a second {name} groove lies {away:.0f} px from "
                 "the measured one; frame a single crossing of the artifact"
             )
+
+
+#: The four arms: name, the groove it lies on (0 horizontal, 1 vertical), its direction along it.
+_ARMS = (("right", 0, 1.0), ("left", 0, -1.0), ("lower", 1, 1.0), ("upper", 1, -1.0))
+
+
+def _missing_arms(
+    horizontal: _Groove, vertical: _Groove, widths: tuple[float, float]
+) -> list[tuple[str, float]]:
+    """The arms that end inside the field of view: (name, distance of the farthest groove step, px).
+    By the compiled kernel when selected (``_kernels``), else numpy (the reference)."""
+    grooves = (horizontal, vertical)
+    ck = compiled()
+    if ck is not None:
+        ends = np.empty(len(_ARMS))
+        bits = ck.arms(
+            np.ascontiguousarray(horizontal.contrast, np.float64),
+            np.ascontiguousarray(horizontal.distance, np.float64),
+            np.ascontiguousarray(vertical.contrast, np.float64),
+            np.ascontiguousarray(vertical.distance, np.float64),
+            widths[0],
+            widths[1],
+            PRESENT_FRACTION,
+            BORDER_TOLERANCE_PX + STEP_PX,
+            ends,
+        )
+        return [(name, float(ends[i])) for i, (name, _, _) in enumerate(_ARMS) if bits >> i & 1]
+    steps = []
+    for name, which, sign in _ARMS:
+        g = grooves[which]
+        other, width = widths[1 - which], widths[which]
+        start = 0.5 * other + max(6.0, 0.25 * width)  # past the perpendicular groove's rounded corners
+        t = sign * g.distance
+        on_arm = t >= start
+        steps.append((name, t[on_arm], g.contrast[on_arm], start))
+    every = np.concatenate([c for *_, c, _ in steps])
+    every = every[np.isfinite(every)]
+    if every.size == 0:
+        return []
+    threshold = PRESENT_FRACTION * max(_quantile(every, 0.75), 5.0)
+    missing = []
+    for name, t, contrast, start in steps:
+        seen = np.isfinite(contrast)
+        if not seen.any():
+            continue  # too short to be seen: its crossing is at the border
+        present = seen & (contrast >= threshold)
+        farthest = float(t[present].max()) if present.any() else start
+        if float(t[seen].max()) - farthest > BORDER_TOLERANCE_PX + STEP_PX:
+            missing.append((name, farthest))
+    return missing

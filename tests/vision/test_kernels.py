@@ -139,3 +139,26 @@ def test_the_profiles_kernel_equals_the_reference_and_drops_the_same_windows(fla
     assert_allclose(strength[:kept], ref.strength, rtol=1e-12)
     assert ref.spread is not None
     assert_allclose(spread[:kept], ref.spread, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.skipif(not available(), reason="the compiled kernels were not built")
+@pytest.mark.parametrize("mode", ["precise", "paper"])
+def test_the_cross_check_decides_as_the_reference_does(mode: str) -> None:
+    """T-junctions, two crosses, crosses near the border: the same verdict and the same sentence."""
+    from tests.hostile import cross, t_junction, two_crosses
+
+    images = {
+        "T left": t_junction(320.0, 240.0, 5.0, "left", preset="nominal"),
+        "T lower": t_junction(300.0, 250.0, -8.0, "lower", preset="hard"),
+        "two crosses": two_crosses((200.0, 170.0), (450.0, 330.0)),
+        "two on one groove": two_crosses((320.0, 150.0), (320.0, 400.0)),
+        "short left arm": cross(58.0, 240.0, 0.0, preset="nominal")[0],
+        "two short arms": cross(575.0, 75.0, 12.0, preset="hard")[0],
+        "turned": cross(330.0, 250.0, 39.0, preset="hard")[0],
+    }
+    verdicts = set()
+    for name, image in images.items():
+        out = _both(image, MeasureParams(mode=mode))
+        _assert_same(out, f"{mode} {name}")
+        verdicts.add(out["numpy"].split(":")[0] if isinstance(out["numpy"], str) else "measured")
+    assert {"incomplete_cross", "measured"} <= verdicts
