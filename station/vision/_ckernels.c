@@ -1387,6 +1387,171 @@ done:
     return result;
 }
 
+/* ---------------------------------------------------------------- the coarse stage's small steps */
+
+static Py_ssize_t argmin_d(const double *v, Py_ssize_t n) {
+    Py_ssize_t k = 0;
+    for (Py_ssize_t i = 1; i < n; i++)
+        if (v[i] < v[k]) k = i;
+    return k;
+}
+
+static Py_ssize_t argmax_d(const double *v, Py_ssize_t n) {
+    Py_ssize_t k = 0;
+    for (Py_ssize_t i = 1; i < n; i++)
+        if (v[i] > v[k]) k = i;
+    return k;
+}
+
+/* band_edges(profile, counts) -> (status, falling, rising)
+ *
+ * _coarse._band_edges: over the bins holding at least max(3, a fifth of the fullest) pixels, the
+ * profile smoothed by a 3-box, its differences, and the darkest band's (strongest fall, strongest rise
+ * after it, or the other way round) indices. status 0 found; 1 no dark band stands out of the
+ * profile's noise (or no rise after the fall); -1 a case the numpy code handles (fewer than 3 bins). */
+static PyObject *band_edges(PyObject *self, PyObject *args) {
+    PyObject *o_p, *o_c;
+    if (!PyArg_ParseTuple(args, "OO", &o_p, &o_c)) return NULL;
+    Buf pb = {0}, cb = {0};
+    PyObject *result = NULL;
+    double *sm = NULL, *d = NULL, *work = NULL;
+    if (get(o_p, &pb, 'd', -1, 0, "profile") < 0 || get(o_c, &cb, 'd', items(&pb), 0, "counts") < 0) goto done;
+    const Py_ssize_t n = items(&pb);
+    const double *profile = (const double *)pb.view.buf, *counts = (const double *)cb.view.buf;
+    double cmax = -INFINITY;
+    for (Py_ssize_t i = 0; i < n; i++) cmax = counts[i] > cmax ? counts[i] : cmax;
+    const double need = 0.2 * cmax > 3.0 ? 0.2 * cmax : 3.0;
+    Py_ssize_t lo = -1, hi = -1;
+    for (Py_ssize_t i = 0; i < n; i++)
+        if (counts[i] >= need) {
+            if (lo < 0) lo = i;
+            hi = i;
+        }
+    if (lo < 0 || hi - lo + 1 < 3) {
+        result = Py_BuildValue("inn", -1, (Py_ssize_t)0, (Py_ssize_t)0);
+        goto done;
+    }
+    const double *p = profile + lo;
+    const Py_ssize_t m = hi - lo + 1;
+    sm = malloc(m * sizeof(double));
+    d = malloc(m * sizeof(double));
+    work = malloc(m * sizeof(double));
+    if (!sm || !d || !work) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    const double k3 = 1.0 / 3.0;
+    sm[0] = p[0];
+    sm[m - 1] = p[m - 1];
+    for (Py_ssize_t i = 1; i < m - 1; i++) sm[i] = p[i - 1] * k3 + p[i] * k3 + p[i + 1] * k3;
+    const Py_ssize_t nd = m - 1;
+    for (Py_ssize_t i = 0; i < nd; i++) d[i] = sm[i + 1] - sm[i];
+    memcpy(work, d, nd * sizeof(double));
+    const double med = select_k(work, nd, nd / 2);
+    for (Py_ssize_t i = 0; i < nd; i++) work[i] = fabs(d[i] - med);
+    const double noise = 1.4826 * select_k(work, nd, nd / 2);
+    const Py_ssize_t fall = argmin_d(d, nd);
+    if (fall + 1 >= nd) {
+        result = Py_BuildValue("inn", 1, (Py_ssize_t)0, (Py_ssize_t)0);
+        goto done;
+    }
+    Py_ssize_t rise = fall + 1 + argmax_d(d + fall + 1, nd - fall - 1), best_fall = fall;
+    const Py_ssize_t rise2 = argmax_d(d, nd);
+    if (rise2 > 0) {
+        const Py_ssize_t fall2 = argmin_d(d, rise2);
+        const double depth1 = d[rise] - d[fall], depth2 = d[rise2] - d[fall2];
+        if (depth2 > depth1) {
+            best_fall = fall2;
+            rise = rise2;
+        }
+    }
+    const double a = -d[best_fall], b = d[rise], floor_ = 8.0 * noise > 2.0 ? 8.0 * noise : 2.0;
+    const int status = (a < b ? a : b) < floor_ ? 1 : 0;
+    result = Py_BuildValue("inn", status, lo + best_fall, lo + rise);
+done:
+    free(sm);
+    free(d);
+    free(work);
+    release(&pb);
+    release(&cb);
+    return result;
+}
+
+/* lands(u, v, v_mid, v_half, u_mid, u_half, out) -> None
+ *
+ * _coarse.coarse_cross's lands for the illumination fit: a reduced pixel is land when it lies beyond
+ * both grooves (|v - v_mid| > v_half and |u - u_mid| > u_half); out (sh // 2, sw // 2) bool: both
+ * diagonal pixels of each 2x2 block are land. */
+static PyObject *lands(PyObject *self, PyObject *args) {
+    PyObject *o_u, *o_v, *o_out;
+    double vm, vh, um, uh;
+    if (!PyArg_ParseTuple(args, "OOddddO", &o_u, &o_v, &vm, &vh, &um, &uh, &o_out)) return NULL;
+    Buf ub = {0}, vb = {0}, ob = {0};
+    PyObject *result = NULL;
+    if (PyObject_GetBuffer(o_u, &ub.view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | PyBUF_ND) < 0) return NULL;
+    ub.held = 1;
+    if (ub.view.ndim != 2 || ub.view.itemsize != 8) {
+        PyErr_SetString(PyExc_TypeError, "lands: u must be a 2-D float64 array");
+        goto done;
+    }
+    const Py_ssize_t sh = ub.view.shape[0], sw = ub.view.shape[1], h2 = sh / 2, w2 = sw / 2;
+    if (get(o_v, &vb, 'd', sh * sw, 0, "v") < 0 || get(o_out, &ob, '?', h2 * w2, 1, "out") < 0) goto done;
+    const double *u = (const double *)ub.view.buf, *v = (const double *)vb.view.buf;
+    uint8_t *out = (uint8_t *)ob.view.buf;
+    for (Py_ssize_t i = 0; i < h2; i++)
+        for (Py_ssize_t j = 0; j < w2; j++) {
+            const Py_ssize_t a = (2 * i) * sw + 2 * j, b = (2 * i + 1) * sw + 2 * j + 1;
+            const int la = fabs(v[a] - vm) > vh && fabs(u[a] - um) > uh;
+            const int lb = fabs(v[b] - vm) > vh && fabs(u[b] - um) > uh;
+            out[i * w2 + j] = (uint8_t)(la && lb);
+        }
+    Py_INCREF(Py_None);
+    result = Py_None;
+done:
+    release(&ub);
+    release(&vb);
+    release(&ob);
+    return result;
+}
+
+/* quality(gray) -> (lo, hi, saturated)
+ *
+ * _image.check_quality's statistics of every fourth pixel of every fourth row: the grey levels at
+ * the 1st and 99th percentiles (the first level whose cumulative fraction reaches them, the
+ * fraction in float32 as numpy's of OpenCV's float32 histogram) and the fraction at 255. */
+static PyObject *quality(PyObject *self, PyObject *args) {
+    PyObject *o_g;
+    if (!PyArg_ParseTuple(args, "O", &o_g)) return NULL;
+    Buf gb = {0};
+    PyObject *result = NULL;
+    if (PyObject_GetBuffer(o_g, &gb.view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | PyBUF_ND) < 0) return NULL;
+    gb.held = 1;
+    if (gb.view.ndim != 2 || gb.view.itemsize != 1) {
+        PyErr_SetString(PyExc_TypeError, "quality: a 2-D uint8 image");
+        goto done;
+    }
+    const Py_ssize_t h = gb.view.shape[0], w = gb.view.shape[1];
+    const uint8_t *g = (const uint8_t *)gb.view.buf;
+    int64_t hist[256] = {0}, size = 0;
+    for (Py_ssize_t i = 0; i < h; i += 4)
+        for (Py_ssize_t j = 0; j < w; j += 4) {
+            hist[g[i * w + j]]++;
+            size++;
+        }
+    int lo = 256, hi = 256;
+    float cum = 0.0f;
+    for (int k = 0; k < 256; k++) {
+        cum += (float)hist[k];
+        const double cdf = (double)(cum / (float)size);
+        if (lo == 256 && cdf >= 0.01) lo = k;
+        if (hi == 256 && cdf >= 0.99) hi = k;
+    }
+    result = Py_BuildValue("iid", lo, hi, (double)((float)hist[255] / (float)size)); /* float32, as numpy's */
+done:
+    release(&gb);
+    return result;
+}
+
 /* ---------------------------------------------------------------- module */
 
 static PyMethodDef methods[] = {
@@ -1399,6 +1564,9 @@ static PyMethodDef methods[] = {
     {"contrast", contrast, METH_VARARGS, "The cross check's contrast of each step along a groove."},
     {"second_band", second_band, METH_VARARGS, "The cross check's search for a second groove."},
     {"arms", arms, METH_VARARGS, "The cross check's arms that end inside the field of view."},
+    {"band_edges", band_edges, METH_VARARGS, "The coarse stage's darkest band in a projected profile."},
+    {"lands", lands, METH_VARARGS, "The coarse stage's land mask for the illumination fit."},
+    {"quality", quality, METH_VARARGS, "The image quality check's percentiles and saturation."},
     {NULL, NULL, 0, NULL},
 };
 

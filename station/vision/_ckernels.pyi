@@ -101,3 +101,17 @@ def arms(
     out_farthest: npt.NDArray[np.float64],
     /,
 ) -> int: ...
+def band_edges(
+    profile: npt.NDArray[np.float64], counts: npt.NDArray[np.float64], /
+) -> tuple[int, int, int]: ...
+def lands(
+    u: npt.NDArray[np.float64],
+    v: npt.NDArray[np.float64],
+    v_mid: float,
+    v_half: float,
+    u_mid: float,
+    u_half: float,
+    out: npt.NDArray[np.bool_],
+    /,
+) -> None: ...
+def quality(gray: npt.NDArray[np.uint8], /) -> tuple[int, int, float]: ...

@@ -192,7 +192,17 @@ def fit_illumination(
 
 
 def _band_edges(profile: FloatArray, counts: FloatArray) -> tuple[int, int]:
-    """Indices (falling, rising) of the darkest band's two edges in a projected profile."""
+    """Indices (falling, rising) of the darkest band's two edges in a projected profile. By the
+    compiled kernel when selected (``_kernels``), else numpy (the reference)."""
+    ck = compiled()
+    if ck is not None:
+        status, fall, rise = ck.band_edges(
+            np.ascontiguousarray(profile, np.float64), np.ascontiguousarray(counts, np.float64)
+        )
+        if status == 0:
+            return fall, rise
+        if status == 1:
+            raise ValueError("no dark band stands out of the profile's noise")
     valid = counts >= max(3.0, 0.2 * float(counts.max()))
     idx = np.flatnonzero(valid)
     lo, hi = int(idx[0]), int(idx[-1])
@@ -339,12 +349,17 @@ def coarse_cross(gray: Gray8, params: MeasureParams) -> CoarseCross:
         v_half = (offsets["bottom"] - offsets["top"]) / 2.0 + margin
         u_mid = (offsets["left"] + offsets["right"]) / 2.0
         u_half = (offsets["right"] - offsets["left"]) / 2.0 + margin
-        land = (np.abs(v - v_mid) > v_half) & (np.abs(u - u_mid) > u_half)
         # the illumination is smooth: fit it on the image reduced once more (2x2 of the reduced pixels)
         sh2, sw2 = small.shape[0] // 2, small.shape[1] // 2
         tiny = np.asarray(
             cv2.resize(small[: 2 * sh2, : 2 * sw2], (sw2, sh2), interpolation=cv2.INTER_AREA), np.float32
         )
-        land2 = land[: 2 * sh2 : 2, : 2 * sw2 : 2] & land[1 : 2 * sh2 : 2, 1 : 2 * sw2 : 2]
+        ck = compiled()
+        if ck is not None:  # the same mask in one pass (``_kernels``)
+            land2 = np.empty((sh2, sw2), np.bool_)
+            ck.lands(u, v, v_mid, v_half, u_mid, u_half, land2)
+        else:
+            land = (np.abs(v - v_mid) > v_half) & (np.abs(u - u_mid) > u_half)
+            land2 = land[: 2 * sh2 : 2, : 2 * sw2 : 2] & land[1 : 2 * sh2 : 2, 1 : 2 * sw2 : 2]
         illumination = fit_illumination(tiny, land2, (h, w), scale=2 * s)
     return CoarseCross(theta, offsets, illumination)

@@ -162,3 +162,29 @@ def test_the_cross_check_decides_as_the_reference_does(mode: str) -> None:
         _assert_same(out, f"{mode} {name}")
         verdicts.add(out["numpy"].split(":")[0] if isinstance(out["numpy"], str) else "measured")
     assert {"incomplete_cross", "measured"} <= verdicts
+
+
+@pytest.mark.skipif(not available(), reason="the compiled kernels were not built")
+def test_the_quality_check_decides_as_the_reference_does(rendered: Render) -> None:
+    from station.vision import check_quality
+
+    image, _ = rendered(320.0, 240.0, seed=4)
+    rng = np.random.default_rng(3)
+    cases = {
+        "cross": image,
+        "blank": np.full((480, 640), 77, np.uint8),
+        "nearly blank": (77 + rng.integers(0, 9, (480, 640))).astype(np.uint8),
+        "saturated": np.where(rng.random((480, 640)) < 0.6, 255, 40).astype(np.uint8),
+        "half saturated": np.where(np.arange(640)[None, :] < 320, 255, 30).repeat(480, 0).astype(np.uint8),
+        "odd size": (rng.random((67, 93)) * 255).astype(np.uint8),
+    }
+    for name, img in cases.items():
+        verdict = {}
+        for kernel in ("numpy", "c"):
+            with kernels(kernel):
+                try:
+                    check_quality(img)
+                    verdict[kernel] = "ok"
+                except MeasurementError as exc:
+                    verdict[kernel] = str(exc)
+        assert verdict["c"] == verdict["numpy"], name
