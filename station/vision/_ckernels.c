@@ -1552,6 +1552,129 @@ done:
     return result;
 }
 
+/* ---------------------------------------------------------------- paper: operators and threshold */
+
+/* prewitt(gray, out_gy, out_gx) -> (gy min, gy max, gx min, gx max)
+ *
+ * _edges.operator_responses on an 8-bit image (eq. 4: gy = the sum of the row below minus that of the
+ * row above over three columns; gx its transpose; borders replicated) as float32 (whole numbers:
+ * exactly OpenCV's values), and their extremes (cv2.minMaxLoc's). Per row: the column differences D
+ * and sums S (int16), then gy = D[c-1] + D[c] + D[c+1] and gx = S[c+1] - S[c-1], branch-free. */
+static PyObject *prewitt(PyObject *self, PyObject *args) {
+    PyObject *o_img, *o_gy, *o_gx;
+    if (!PyArg_ParseTuple(args, "OOO", &o_img, &o_gy, &o_gx)) return NULL;
+    Buf img = {0}, gyb = {0}, gxb = {0};
+    PyObject *result = NULL;
+    int16_t *D = NULL, *S = NULL;
+    if (PyObject_GetBuffer(o_img, &img.view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | PyBUF_ND) < 0) return NULL;
+    img.held = 1;
+    if (img.view.ndim != 2 || img.view.itemsize != 1 || img.view.shape[0] < 1 || img.view.shape[1] < 1) {
+        PyErr_SetString(PyExc_TypeError, "prewitt: gray must be a non-empty 2-D uint8 array");
+        goto done;
+    }
+    const Py_ssize_t h = img.view.shape[0], w = img.view.shape[1];
+    if (get(o_gy, &gyb, 'f', h * w, 1, "out_gy") < 0 || get(o_gx, &gxb, 'f', h * w, 1, "out_gx") < 0) goto done;
+    D = malloc((w + 2) * sizeof(int16_t));
+    S = malloc((w + 2) * sizeof(int16_t));
+    if (!D || !S) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    const uint8_t *I = (const uint8_t *)img.view.buf;
+    float *gy = (float *)gyb.view.buf, *gx = (float *)gxb.view.buf;
+    int ylo = INT32_MAX, yhi = INT32_MIN, xlo = INT32_MAX, xhi = INT32_MIN;
+    for (Py_ssize_t r = 0; r < h; r++) {
+        const uint8_t *restrict up = I + (r > 0 ? r - 1 : 0) * w, *restrict mid = I + r * w,
+                                *restrict dn = I + (r < h - 1 ? r + 1 : r) * w;
+        int16_t *restrict d = D + 1, *restrict sm = S + 1;
+        for (Py_ssize_t c = 0; c < w; c++) {
+            d[c] = (int16_t)((int16_t)dn[c] - (int16_t)up[c]);
+            sm[c] = (int16_t)((int16_t)up[c] + (int16_t)mid[c] + (int16_t)dn[c]);
+        }
+        D[0] = D[1];
+        D[w + 1] = D[w];
+        S[0] = S[1];
+        S[w + 1] = S[w];
+        float *restrict oy = gy + r * w, *restrict ox = gx + r * w;
+        int16_t rylo = INT16_MAX, ryhi = INT16_MIN, rxlo = INT16_MAX, rxhi = INT16_MIN;
+        for (Py_ssize_t c = 0; c < w; c++) {
+            const int16_t vy = (int16_t)(D[c] + D[c + 1] + D[c + 2]);
+            const int16_t vx = (int16_t)(S[c + 2] - S[c]);
+            oy[c] = (float)vy;
+            ox[c] = (float)vx;
+            rylo = vy < rylo ? vy : rylo;
+            ryhi = vy > ryhi ? vy : ryhi;
+            rxlo = vx < rxlo ? vx : rxlo;
+            rxhi = vx > rxhi ? vx : rxhi;
+        }
+        ylo = rylo < ylo ? rylo : ylo;
+        yhi = ryhi > yhi ? ryhi : yhi;
+        xlo = rxlo < xlo ? rxlo : xlo;
+        xhi = rxhi > xhi ? rxhi : xhi;
+    }
+    result = Py_BuildValue("dddd", (double)ylo, (double)yhi, (double)xlo, (double)xhi);
+done:
+    free(D);
+    free(S);
+    release(&img);
+    release(&gyb);
+    release(&gxb);
+    return result;
+}
+
+/* above(response, level) -> bytes of int64 flat indices
+ *
+ * np.flatnonzero(np.abs(response) > level) on a float32 response (level exactly a float32 value):
+ * counted first (blocks of 16 without such a value passed over by one vectorised test), then
+ * written to a buffer of exactly that size. */
+static Py_ssize_t above_pass(const float *r, Py_ssize_t n, float lv, int64_t *out) {
+    /* |x| > lv on the bits: for finite floats, the magnitude's bits order as the magnitudes do (the
+     * responses are whole numbers, never NaN) */
+    uint32_t lb;
+    memcpy(&lb, &lv, sizeof lb);
+    const uint32_t *u = (const uint32_t *)(const void *)r;
+    Py_ssize_t k = 0, i = 0;
+    for (; i + 32 <= n; i += 32) {
+        uint32_t hits = 0;
+        for (int j = 0; j < 32; j++) hits += (u[i + j] & 0x7fffffffu) > lb;
+        if (!hits) continue;
+        for (int j = 0; j < 32; j++)
+            if ((u[i + j] & 0x7fffffffu) > lb) {
+                if (out) out[k] = i + j;
+                k++;
+            }
+    }
+    for (; i < n; i++)
+        if ((u[i] & 0x7fffffffu) > lb) {
+            if (out) out[k] = i;
+            k++;
+        }
+    return k;
+}
+
+static PyObject *above(PyObject *self, PyObject *args) {
+    PyObject *o_r;
+    double level;
+    if (!PyArg_ParseTuple(args, "Od", &o_r, &level)) return NULL;
+    Buf rb = {0};
+    PyObject *result = NULL;
+    if (get(o_r, &rb, 'f', -1, 0, "response") < 0) return NULL;
+    const Py_ssize_t n = items(&rb);
+    const float lv = (float)level;
+    if ((double)lv != level || !(lv >= 0)) {
+        PyErr_SetString(PyExc_ValueError, "above: level must be exactly a non-negative float32 value");
+        goto done;
+    }
+    const float *r = (const float *)rb.view.buf;
+    const Py_ssize_t count = above_pass(r, n, lv, NULL);
+    result = PyBytes_FromStringAndSize(NULL, count * (Py_ssize_t)sizeof(int64_t));
+    if (!result) goto done;
+    above_pass(r, n, lv, (int64_t *)PyBytes_AS_STRING(result));
+done:
+    release(&rb);
+    return result;
+}
+
 /* ---------------------------------------------------------------- module */
 
 static PyMethodDef methods[] = {
@@ -1567,6 +1690,8 @@ static PyMethodDef methods[] = {
     {"band_edges", band_edges, METH_VARARGS, "The coarse stage's darkest band in a projected profile."},
     {"lands", lands, METH_VARARGS, "The coarse stage's land mask for the illumination fit."},
     {"quality", quality, METH_VARARGS, "The image quality check's percentiles and saturation."},
+    {"prewitt", prewitt, METH_VARARGS, "Paper mode's operators on an 8-bit image, with their extremes."},
+    {"above", above, METH_VARARGS, "Flat indices of the responses above a level in magnitude."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -43,8 +43,7 @@ def paper_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
     )
     fits: dict[Edge, EdgeFit] = {}
     problems: dict[Edge, str] = {}
-    for horizontal, response in zip((True, False), operator_responses(filtered), strict=True):
-        lo, hi, _, _ = cv2.minMaxLoc(response)
+    for horizontal, (response, lo, hi) in zip((True, False), _responses(filtered), strict=True):
         polarities = ((_NEGATIVE_EDGE[horizontal], -1.0, -lo), (_POSITIVE_EDGE[horizontal], 1.0, hi))
         # the threshold of each polarity (apply_threshold; none when its response is nowhere positive)
         levels = [
@@ -78,11 +77,34 @@ def paper_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
     return fits
 
 
+def _responses(
+    filtered: Float32Image | npt.NDArray[np.uint8],
+) -> tuple[tuple[Float32Image, float, float], tuple[Float32Image, float, float]]:
+    """The operators' responses (gy, gx: ``operator_responses``), each with its minimum and maximum;
+    on an 8-bit image by the compiled kernel when selected (``_kernels``: the same whole numbers and
+    extremes, in one pass)."""
+    ck = compiled()
+    if ck is not None and filtered.dtype == np.uint8:
+        gy = np.empty(filtered.shape, np.float32)
+        gx = np.empty(filtered.shape, np.float32)
+        ylo, yhi, xlo, xhi = ck.prewitt(np.ascontiguousarray(filtered), gy, gx)
+        return (gy, ylo, yhi), (gx, xlo, xhi)
+    gy, gx = operator_responses(filtered)
+    (ylo, yhi, _, _), (xlo, xhi, _, _) = cv2.minMaxLoc(gy), cv2.minMaxLoc(gx)
+    return (gy, ylo, yhi), (gx, xlo, xhi)
+
+
 def _above(response: Float32Image, levels: list[float]) -> IntArray:
     """Flat indices of the pixels whose |response| exceeds the lower of ``levels``: every pixel above
-    either polarity's threshold, in one pass (each edge then keeps its own)."""
+    either polarity's threshold, in one pass (each edge then keeps its own). The levels are float32
+    values (``threshold_level``), non-negative: by the compiled kernel when selected (``_kernels``),
+    else numpy."""
     if not levels:
         return np.zeros(0, np.intp)
+    ck = compiled()
+    if ck is not None:
+        found = np.frombuffer(ck.above(np.ascontiguousarray(response, np.float32), min(levels)), np.int64)
+        return found.astype(np.intp, copy=False)
     return np.flatnonzero(np.abs(response) > min(levels))
 
 

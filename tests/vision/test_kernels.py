@@ -188,3 +188,28 @@ def test_the_quality_check_decides_as_the_reference_does(rendered: Render) -> No
                 except MeasurementError as exc:
                     verdict[kernel] = str(exc)
         assert verdict["c"] == verdict["numpy"], name
+
+
+@pytest.mark.skipif(not available(), reason="the compiled kernels were not built")
+@pytest.mark.parametrize("shape", [(480, 640), (64, 65), (97, 130)])
+def test_the_operator_kernels_give_opencvs_values(shape: tuple[int, int]) -> None:
+    """Paper mode's operators (whole numbers: exactly equal), extremes and threshold candidates."""
+    import cv2
+
+    from station.vision import _ckernels
+    from station.vision._edges import operator_responses, threshold_level
+
+    rng = np.random.default_rng(shape[1])
+    gray = (rng.random(shape) * 256).astype(np.uint8)
+    gray[:, : shape[1] // 3] = 0  # a step: responses of both signs, at the borders too
+    gy, gx = np.empty(shape, np.float32), np.empty(shape, np.float32)
+    extremes = _ckernels.prewitt(gray, gy, gx)
+    ref_y, ref_x = operator_responses(gray)
+    assert_array_equal(gy, ref_y)
+    assert_array_equal(gx, ref_x)
+    (ylo, yhi, _, _), (xlo, xhi, _, _) = cv2.minMaxLoc(ref_y), cv2.minMaxLoc(ref_x)
+    assert extremes == (ylo, yhi, xlo, xhi)
+    for fraction in (0.0, 0.3, 0.9):
+        level = max(threshold_level(yhi, fraction), 0.0)
+        got = np.frombuffer(_ckernels.above(gy, level), np.int64)
+        assert_array_equal(got, np.flatnonzero(np.abs(ref_y) > level))
