@@ -657,6 +657,9 @@ static PyObject *project(PyObject *self, PyObject *args) {
     double *u = (double *)ub.view.buf, *v = (double *)vb.view.buf, *counts = (double *)cb.view.buf,
            *sums = (double *)smb.view.buf;
     const double c = cos(theta), sn = sin(theta), s = (double)scale;
+    /* x / s as x * (1 / s) where that is exact (s a power of two): a multiply instead of a divide */
+    const int pow2 = (scale & (scale - 1)) == 0;
+    const double inv_s = 1.0 / s;
     const double half_s = (double)(scale - 1) / 2.0, cx = (double)(w - 1) / 2.0, cy = (double)(h - 1) / 2.0;
     double vmin = INFINITY, umin = INFINITY;
     for (Py_ssize_t i = 0; i < sh; i++) {
@@ -666,7 +669,7 @@ static PyObject *project(PyObject *self, PyObject *args) {
             const double uu = xf * c + yf * sn, vv = -xf * sn + yf * c;
             u[i * sw + j] = uu;
             v[i * sw + j] = vv;
-            const double qu = uu / s, qv = vv / s;
+            const double qu = pow2 ? uu * inv_s : uu / s, qv = pow2 ? vv * inv_s : vv / s;
             umin = qu < umin ? qu : umin;
             vmin = qv < vmin ? qv : vmin;
         }
@@ -678,7 +681,8 @@ static PyObject *project(PyObject *self, PyObject *args) {
         const double *coord = g == 0 ? v : u;
         double *cn = counts + g * cap, *sm = sums + g * cap;
         for (Py_ssize_t k = 0; k < n; k++) {
-            const Py_ssize_t b = (Py_ssize_t)(coord[k] / s - base[g]); /* non-negative: truncation is floor */
+            const double q = pow2 ? coord[k] * inv_s : coord[k] / s;
+            const Py_ssize_t b = (Py_ssize_t)(q - base[g]); /* non-negative: truncation is floor */
             if (b < 0 || b >= cap) {
                 PyErr_SetString(PyExc_ValueError, "project: out_counts too short for the bins");
                 goto done;
@@ -717,10 +721,12 @@ static int normal_solve(const double *P, Py_ssize_t terms, Py_ssize_t n, const d
         for (Py_ssize_t i = 0; i < terms; i++) {
             const double pi = p[i];
             double *row = M + i * terms;
-            for (Py_ssize_t j = 0; j < terms; j++) row[j] += pi * p[j];
+            for (Py_ssize_t j = 0; j <= i; j++) row[j] += pi * p[j]; /* the lower triangle */
             r[i] += pi * vk;
         }
     }
+    for (Py_ssize_t i = 0; i < terms; i++)
+        for (Py_ssize_t j = i + 1; j < terms; j++) M[i * terms + j] = M[j * terms + i];
     for (Py_ssize_t i = 0; i < terms; i++)
         for (Py_ssize_t j = 0; j <= i; j++) {
             double acc = M[i * terms + j];
