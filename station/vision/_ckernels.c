@@ -1681,6 +1681,51 @@ done:
     return result;
 }
 
+/* groove_maps(c0, c1, u0, u1, n0, n1, t_from, w, gap, out_mapx, out_mapy) -> None
+ *
+ * _sanity._Groove's sampling maps (float32 (11, T)): steps t = t_from, t_from + 1, ... along the
+ * groove (direction u) from c, at 11 offsets s across it (direction n): 5 over the groove's middle
+ * (np.linspace(-0.3 w, 0.3 w, 5)), then 3 on each land (0.5 w + gap + (0, 0.15, 0.3) w, and their
+ * negatives): map = (c + t u) + s n, rounded to float32. */
+static PyObject *groove_maps(PyObject *self, PyObject *args) {
+    double c0, c1, u0, u1, n0, n1, t_from, w, gap;
+    PyObject *o_x, *o_y;
+    if (!PyArg_ParseTuple(args, "dddddddddOO", &c0, &c1, &u0, &u1, &n0, &n1, &t_from, &w, &gap, &o_x, &o_y))
+        return NULL;
+    Buf xb = {0}, yb = {0};
+    PyObject *result = NULL;
+    if (get(o_x, &xb, 'f', -1, 1, "out_mapx") < 0) return NULL;
+    if (items(&xb) % 11 != 0 || get(o_y, &yb, 'f', items(&xb), 1, "out_mapy") < 0) {
+        if (!PyErr_Occurred()) PyErr_SetString(PyExc_ValueError, "groove_maps: maps must be (11, steps)");
+        goto done;
+    }
+    const Py_ssize_t T = items(&xb) / 11;
+    double sv[11];
+    /* np.linspace(a, b, 5): a + k * step, the last exactly b */
+    const double a = -0.3 * w, b = 0.3 * w, step = (b - a) / 4.0;
+    for (int k = 0; k < 5; k++) sv[k] = (double)k * step + a;
+    sv[4] = b;
+    const double frac[3] = {0.0, 0.15, 0.3};
+    for (int k = 0; k < 3; k++) {
+        const double land = 0.5 * w + gap + frac[k] * w;
+        sv[5 + k] = land;
+        sv[8 + k] = -land;
+    }
+    float *mx = (float *)xb.view.buf, *my = (float *)yb.view.buf;
+    for (int k = 0; k < 11; k++)
+        for (Py_ssize_t j = 0; j < T; j++) {
+            const double t = t_from + (double)j;
+            mx[k * T + j] = (float)(c0 + t * u0 + sv[k] * n0);
+            my[k * T + j] = (float)(c1 + t * u1 + sv[k] * n1);
+        }
+    Py_INCREF(Py_None);
+    result = Py_None;
+done:
+    release(&xb);
+    release(&yb);
+    return result;
+}
+
 /* ---------------------------------------------------------------- module */
 
 static PyMethodDef methods[] = {
@@ -1693,6 +1738,7 @@ static PyMethodDef methods[] = {
     {"contrast", contrast, METH_VARARGS, "The cross check's contrast of each step along a groove."},
     {"second_band", second_band, METH_VARARGS, "The cross check's search for a second groove."},
     {"arms", arms, METH_VARARGS, "The cross check's arms that end inside the field of view."},
+    {"groove_maps", groove_maps, METH_VARARGS, "The cross check's sampling maps along a groove."},
     {"band_edges", band_edges, METH_VARARGS, "The coarse stage's darkest band in a projected profile."},
     {"lands", lands, METH_VARARGS, "The coarse stage's land mask for the illumination fit."},
     {"quality", quality, METH_VARARGS, "The image quality check's percentiles and saturation."},

@@ -119,3 +119,17 @@ def prewitt(
     gray: npt.NDArray[np.uint8], out_gy: npt.NDArray[np.float32], out_gx: npt.NDArray[np.float32], /
 ) -> tuple[float, float, float, float]: ...
 def above(response: npt.NDArray[np.float32], level: float, /) -> bytes: ...
+def groove_maps(
+    c0: float,
+    c1: float,
+    u0: float,
+    u1: float,
+    n0: float,
+    n1: float,
+    t_from: float,
+    w: float,
+    gap: float,
+    out_mapx: npt.NDArray[np.float32],
+    out_mapy: npt.NDArray[np.float32],
+    /,
+) -> None: ...

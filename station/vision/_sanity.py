@@ -109,15 +109,32 @@ class _Groove:
         c = (centre - _REDUCE // 2) / _REDUCE
         w = width_px / _REDUCE
         gap = max(3.0, 0.15 * width_px) / _REDUCE
-        t = np.arange(*_span(c, u, (sh, sw)), dtype=np.float64)
-        land = 0.5 * w + gap + np.array([0.0, 0.15, 0.3]) * w
-        s = np.concatenate([np.linspace(-0.3 * w, 0.3 * w, 5), land, -land])
-        mapx = (c[0] + t[None, :] * u[0] + s[:, None] * n[0]).astype(np.float32)
-        mapy = (c[1] + t[None, :] * u[1] + s[:, None] * n[1]).astype(np.float32)
+        t_from, t_to = _span(c, u, (sh, sw))
+        t = np.arange(t_from, t_to, dtype=np.float64)
+        ck = compiled()
+        if ck is not None:  # the same maps in one pass (``_kernels``)
+            mapx, mapy = np.empty((11, t.size), np.float32), np.empty((11, t.size), np.float32)
+            ck.groove_maps(
+                float(c[0]),
+                float(c[1]),
+                float(u[0]),
+                float(u[1]),
+                float(n[0]),
+                float(n[1]),
+                t_from,
+                w,
+                gap,
+                mapx,
+                mapy,
+            )
+        else:
+            land = 0.5 * w + gap + np.array([0.0, 0.15, 0.3]) * w
+            s = np.concatenate([np.linspace(-0.3 * w, 0.3 * w, 5), land, -land])
+            mapx = (c[0] + t[None, :] * u[0] + s[:, None] * n[0]).astype(np.float32)
+            mapy = (c[1] + t[None, :] * u[1] + s[:, None] * n[1]).astype(np.float32)
         values = cv2.remap(
             small, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan
         )
-        ck = compiled()
         if ck is not None:  # the same arithmetic in one pass (``_kernels``)
             self.contrast = np.empty(values.shape[1])
             ck.contrast(np.ascontiguousarray(values, np.float32), self.contrast)
