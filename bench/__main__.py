@@ -6,7 +6,9 @@ displacement error mean/max (um) raw (rigid fit) and parallelogram (affine fit),
 core; with the Cramer-Rao bound at that noise beside them (accuracy.md). Then speed (issue 12,
 ``bench/timing.py``): each method's ms per image and its ratio to the plain-OpenCV baseline timed in
 the same rounds, and ``station measure`` throughput with one job and with all cores, each against its
-target. Written to ``bench/results/bench.json`` too.
+target. Written to ``bench/results/bench.json`` too. The measurement core runs its compiled kernels
+when they were built (``station/vision/_kernels.py``; ``STATION_VISION_KERNELS=numpy`` times the
+numpy reference instead); the table says which.
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ from station.vision import (
     measure,
     series_centers_mm,
 )
+from station.vision._kernels import compiled
 
 UM_PER_PX = 10.0  # the simulated camera: 100 px/mm
 Method = Callable[[np.ndarray], tuple[tuple[float, float], tuple[float, float], np.ndarray | None]]
@@ -150,7 +153,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     cv2.setNumThreads(1)
     tune_allocator()  # as the station's command line does
-    results: dict[str, Any] = {"presets": {}, "um_per_px": UM_PER_PX}
+    kernels = "compiled (C)" if compiled() is not None else "numpy reference"
+    results: dict[str, Any] = {"presets": {}, "um_per_px": UM_PER_PX, "kernels": kernels}
     for preset in ("nominal", "hard"):
         rnd = args.data / f"random-{preset}-{args.count}"
         val = args.data / f"validation-{preset}"
@@ -211,7 +215,7 @@ def render_speed(results: dict[str, Any], throughput: Throughput | None) -> str:
     head = (
         f"{'preset':8} {'method':16} {'ms/img (range)':>16} {'x baseline (range)':>22} {'median':>7}  target"
     )
-    lines = [head, "-" * len(head)]
+    lines = [f"measurement core: {results.get('kernels', 'numpy reference')} kernels", head, "-" * len(head)]
     for preset, entry in results["presets"].items():
         for name, row in entry["speed"].items():
             lo, hi = row["ms_range"]

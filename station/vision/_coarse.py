@@ -20,6 +20,7 @@ from numpy.polynomial.polynomial import polyval2d
 from station.vision._edges import EDGES, Edge
 from station.vision._errors import EdgeNotFoundError, describe_missing, rotated_too_far
 from station.vision._image import Gray8
+from station.vision._kernels import compiled
 from station.vision._orientation import dominant_rotation_deg
 from station.vision._params import MeasureParams
 
@@ -82,6 +83,14 @@ def _power_tables(shape: tuple[int, int]) -> tuple[FloatArray, FloatArray]:
 
 
 @lru_cache(maxsize=8)
+def _row_coordinate(shape: tuple[int, int]) -> FloatArray:
+    """Every row's normalised coordinate, (h,) C-contiguous (``_power_tables``'s row 1 of y)."""
+    yn = np.ascontiguousarray(_power_tables(shape)[1][1])
+    yn.setflags(write=False)
+    return yn
+
+
+@lru_cache(maxsize=8)
 def _small_basis(small_shape: tuple[int, int], shape: tuple[int, int], scale: int) -> FloatArray:
     """Flat-field polynomial terms at the reduced image's pixel centres, (terms, sh*sw)."""
     xf, yf = _centred_grid(small_shape, shape, scale)
@@ -117,10 +126,15 @@ class Illumination:
             value = value * yn + coef[j][x]
         return np.asarray(value, np.float64)
 
+    def pixel_tables(self) -> tuple[FloatArray, FloatArray]:
+        """What ``at_pixels`` evaluates, for the compiled kernel: per column x the coefficients of
+        y^0..y^d, (d+1, w), and every row's normalised y, (h,), both C-contiguous float64."""
+        return self._column_coef, _row_coordinate(self.shape)
+
     @cached_property
     def _column_coef(self) -> FloatArray:
         """(d+1, w): per image column x, the coefficients of y^0..y^d: sum_i coef[i, j] xn^i."""
-        return np.asarray(self._grid.T @ _power_tables(self.shape)[0], np.float64)
+        return np.ascontiguousarray(self._grid.T @ _power_tables(self.shape)[0], np.float64)
 
     @cached_property
     def _grid(self) -> FloatArray:
@@ -147,9 +161,18 @@ def fit_illumination(
     A degree-4 polynomial in the image coordinates is fitted to the land pixels of the reduced image
     (every fourth one is plenty), refitted once without scratches and glints (beyond 3 MAD) and
     normalised to mean 1 over the lands. None when too few land pixels are seen or the fit runs wild.
+    By the compiled kernel when selected (``_kernels``), else numpy (the reference).
     """
     sh, sw = small.shape
     basis = _small_basis((sh, sw), shape, scale)
+    ck = compiled()
+    if ck is not None:
+        coef = np.empty(len(_FLAT_TERMS))
+        status = ck.illumination(
+            np.ascontiguousarray(small, np.float32), np.ascontiguousarray(land, np.bool_), basis, coef
+        )
+        if status >= 0:  # else singular normal equations: numpy's general solver decides, below
+            return Illumination(coef, shape) if status else None
     idx = np.flatnonzero(land.ravel())[::4]
     if idx.size < 10 * len(_FLAT_TERMS):
         return None
@@ -169,7 +192,17 @@ def fit_illumination(
 
 
 def _band_edges(profile: FloatArray, counts: FloatArray) -> tuple[int, int]:
-    """Indices (falling, rising) of the darkest band's two edges in a projected profile."""
+    """Indices (falling, rising) of the darkest band's two edges in a projected profile. By the
+    compiled kernel when selected (``_kernels``), else numpy (the reference)."""
+    ck = compiled()
+    if ck is not None:
+        status, fall, rise = ck.band_edges(
+            np.ascontiguousarray(profile, np.float64), np.ascontiguousarray(counts, np.float64)
+        )
+        if status == 0:
+            return fall, rise
+        if status == 1:
+            raise ValueError("no dark band stands out of the profile's noise")
     valid = counts >= max(3.0, 0.2 * float(counts.max()))
     idx = np.flatnonzero(valid)
     lo, hi = int(idx[0]), int(idx[-1])
@@ -233,6 +266,50 @@ def reduce_4x(gray: Gray8) -> npt.NDArray[np.float32]:
     return np.asarray(small, np.float32)
 
 
+Projection = tuple[int, FloatArray, FloatArray]
+
+
+def _projections(
+    small: npt.NDArray[np.float32], shape: tuple[int, int], theta: float
+) -> tuple[FloatArray, FloatArray, tuple[Projection, Projection]]:
+    """The reduced image projected along the two grooves: per reduced pixel its coordinates u (along
+    the horizontal groove) and v (along the vertical one), full-resolution px from the image centre;
+    then for v and for u the pixels binned by coordinate in reduced px (bin b: floor(coord / scale)
+    = base + b), each bin's count and sum. By the compiled kernel when selected (``_kernels``), else
+    numpy (the reference)."""
+    h, w = shape
+    s = COARSE_SCALE
+    ck = compiled()
+    if ck is not None:
+        u, v = np.empty(small.shape), np.empty(small.shape)
+        cap = math.ceil(math.hypot(h, w) / s) + 4
+        counts, sums = np.empty((2, cap)), np.empty((2, cap))
+        base_v, bins_v, base_u, bins_u = ck.project(
+            np.ascontiguousarray(small, np.float32), h, w, s, theta, u, v, counts, sums
+        )
+        return (
+            u,
+            v,
+            (
+                (int(base_v), counts[0, :bins_v], sums[0, :bins_v]),
+                (int(base_u), counts[1, :bins_u], sums[1, :bins_u]),
+            ),
+        )
+    xf, yf = _centred_grid(small.shape, (h, w))
+    c, sn = math.cos(theta), math.sin(theta)
+    u = xf * c + yf * sn  # along the horizontal groove
+    v = -xf * sn + yf * c  # along the vertical groove
+    values = small.ravel().astype(np.float64)
+    out: list[Projection] = []
+    for coord in (v, u):
+        q = coord.ravel() / s
+        base = math.floor(float(q.min()))
+        bins = (q - base).astype(np.intp)  # non-negative: truncation is floor
+        sums = np.asarray(np.bincount(bins, weights=values), np.float64)
+        out.append((base, np.bincount(bins).astype(np.float64), sums))
+    return u, v, (out[0], out[1])
+
+
 def coarse_cross(gray: Gray8, params: MeasureParams) -> CoarseCross:
     """Find the two grooves roughly (to about a pixel) on a reduced image."""
     h, w = gray.shape
@@ -248,19 +325,10 @@ def coarse_cross(gray: Gray8, params: MeasureParams) -> CoarseCross:
     if abs(rotation_deg) > max_rot:
         raise rotated_too_far(rotation_deg, max_rot)
     theta = math.radians(rotation_deg)
-    xf, yf = _centred_grid(small.shape, (h, w))
-    c, sn = math.cos(theta), math.sin(theta)
-    u = xf * c + yf * sn  # along the horizontal groove
-    v = -xf * sn + yf * c  # along the vertical groove
+    u, v, projections = _projections(small, (h, w), theta)
     offsets: dict[Edge, float] = {}
-    values = small.ravel().astype(np.float64)
-    grooves: tuple[tuple[FloatArray, Edge, Edge], ...] = ((v, "top", "bottom"), (u, "left", "right"))
-    for coord, falling, rising in grooves:
-        q = coord.ravel() / s
-        base = math.floor(float(q.min()))
-        bins = (q - base).astype(np.intp)  # non-negative: truncation is floor
-        counts = np.bincount(bins).astype(np.float64)
-        sums = np.bincount(bins, weights=values)
+    names: tuple[tuple[Edge, Edge], tuple[Edge, Edge]] = (("top", "bottom"), ("left", "right"))
+    for (base, counts, sums), (falling, rising) in zip(projections, names, strict=True):
         profile = sums / np.maximum(counts, 1.0)
         try:
             i_fall, i_rise = _band_edges(profile, counts)
@@ -281,12 +349,17 @@ def coarse_cross(gray: Gray8, params: MeasureParams) -> CoarseCross:
         v_half = (offsets["bottom"] - offsets["top"]) / 2.0 + margin
         u_mid = (offsets["left"] + offsets["right"]) / 2.0
         u_half = (offsets["right"] - offsets["left"]) / 2.0 + margin
-        land = (np.abs(v - v_mid) > v_half) & (np.abs(u - u_mid) > u_half)
         # the illumination is smooth: fit it on the image reduced once more (2x2 of the reduced pixels)
         sh2, sw2 = small.shape[0] // 2, small.shape[1] // 2
         tiny = np.asarray(
             cv2.resize(small[: 2 * sh2, : 2 * sw2], (sw2, sh2), interpolation=cv2.INTER_AREA), np.float32
         )
-        land2 = land[: 2 * sh2 : 2, : 2 * sw2 : 2] & land[1 : 2 * sh2 : 2, 1 : 2 * sw2 : 2]
+        ck = compiled()
+        if ck is not None:  # the same mask in one pass (``_kernels``)
+            land2 = np.empty((sh2, sw2), np.bool_)
+            ck.lands(u, v, v_mid, v_half, u_mid, u_half, land2)
+        else:
+            land = (np.abs(v - v_mid) > v_half) & (np.abs(u - u_mid) > u_half)
+            land2 = land[: 2 * sh2 : 2, : 2 * sw2 : 2] & land[1 : 2 * sh2 : 2, 1 : 2 * sw2 : 2]
         illumination = fit_illumination(tiny, land2, (h, w), scale=2 * s)
     return CoarseCross(theta, offsets, illumination)

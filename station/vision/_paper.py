@@ -8,6 +8,8 @@ eqs. 9-12) -> 9 centre relative to the image origin, mm (3.2.6).
 
 from __future__ import annotations
 
+from types import ModuleType
+
 import cv2
 import numpy as np
 import numpy.typing as npt
@@ -17,6 +19,7 @@ from station.vision._errors import EdgeNotFoundError, describe_missing
 from station.vision._filters import apply_filter
 from station.vision._geometry import VERTICAL, Line, normal_form
 from station.vision._image import Gray8
+from station.vision._kernels import compiled
 from station.vision._linefit import recursive_fit
 from station.vision._moment import intensity_moment
 from station.vision._params import MeasureParams
@@ -40,8 +43,7 @@ def paper_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
     )
     fits: dict[Edge, EdgeFit] = {}
     problems: dict[Edge, str] = {}
-    for horizontal, response in zip((True, False), operator_responses(filtered), strict=True):
-        lo, hi, _, _ = cv2.minMaxLoc(response)
+    for horizontal, (response, lo, hi) in zip((True, False), _responses(filtered), strict=True):
         polarities = ((_NEGATIVE_EDGE[horizontal], -1.0, -lo), (_POSITIVE_EDGE[horizontal], 1.0, hi))
         # the threshold of each polarity (apply_threshold; none when its response is nowhere positive)
         levels = [
@@ -75,16 +77,43 @@ def paper_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
     return fits
 
 
+def _responses(
+    filtered: Float32Image | npt.NDArray[np.uint8],
+) -> tuple[tuple[Float32Image, float, float], tuple[Float32Image, float, float]]:
+    """The operators' responses (gy, gx: ``operator_responses``), each with its minimum and maximum;
+    on an 8-bit image by the compiled kernel when selected (``_kernels``: the same whole numbers and
+    extremes, in one pass)."""
+    ck = compiled()
+    if ck is not None and filtered.dtype == np.uint8:
+        gy = np.empty(filtered.shape, np.float32)
+        gx = np.empty(filtered.shape, np.float32)
+        ylo, yhi, xlo, xhi = ck.prewitt(np.ascontiguousarray(filtered), gy, gx)
+        return (gy, ylo, yhi), (gx, xlo, xhi)
+    gy, gx = operator_responses(filtered)
+    (ylo, yhi, _, _), (xlo, xhi, _, _) = cv2.minMaxLoc(gy), cv2.minMaxLoc(gx)
+    return (gy, ylo, yhi), (gx, xlo, xhi)
+
+
 def _above(response: Float32Image, levels: list[float]) -> IntArray:
     """Flat indices of the pixels whose |response| exceeds the lower of ``levels``: every pixel above
-    either polarity's threshold, in one pass (each edge then keeps its own)."""
+    either polarity's threshold, in one pass (each edge then keeps its own). The levels are float32
+    values (``threshold_level``), non-negative: by the compiled kernel when selected (``_kernels``),
+    else numpy."""
     if not levels:
         return np.zeros(0, np.intp)
+    ck = compiled()
+    if ck is not None:
+        found = np.frombuffer(ck.above(np.ascontiguousarray(response, np.float32), min(levels)), np.int64)
+        return found.astype(np.intp, copy=False)
     return np.flatnonzero(np.abs(response) > min(levels))
 
 
 def _edge_fit(gray: Gray8, pixels: IntArray, edge: Edge, params: MeasureParams) -> EdgeFit | str:
-    """Stages 5-6 for one edge's segmented pixels: its fit, or why it was not found."""
+    """Stages 5-6 for one edge's segmented pixels: its fit, or why it was not found. By the compiled
+    kernel when selected (``_kernels``), else numpy (the reference)."""
+    ck = compiled()
+    if ck is not None:
+        return _edge_fit_compiled(ck, gray, pixels, edge, params)
     refined, valid = intensity_moment(gray, pixels)
     pts = refined[valid]
     if len(pts) < params.min_edge_points:
@@ -113,4 +142,40 @@ def _edge_fit(gray: Gray8, pixels: IntArray, edge: Edge, params: MeasureParams) 
         removed=fit.removed,
         rms_px=fit.rms_px,
         points=np.ascontiguousarray(pts[fit.kept]),
+    )
+
+
+def _edge_fit_compiled(
+    ck: ModuleType, gray: Gray8, pixels: IntArray, edge: Edge, params: MeasureParams
+) -> EdgeFit | str:
+    """``_edge_fit`` by ``_ckernels.edge_fit``: the same moments and the same sequence of removals."""
+    vertical = edge in VERTICAL
+    pts = np.empty((len(pixels), 2))
+    kept = np.empty(len(pixels), np.bool_)
+    valid, status, slope, intercept, removed, rms = ck.edge_fit(
+        np.ascontiguousarray(gray),
+        np.ascontiguousarray(pixels, np.int64),
+        vertical,
+        params.corr_tol,
+        params.change_tol,
+        params.max_removals,
+        params.min_edge_points,
+        pts,
+        kept,
+    )
+    if status == 1:
+        return f"{valid} points (at least {params.min_edge_points} needed)"
+    if status == 2:
+        raise ValueError("points are all in one column: no line can be fitted")  # as recursive_fit
+    used = valid - int(removed)
+    if rms > params.residual_limit_px:
+        return f"its {used} points are not on a line (rms {rms:.1f} px > {params.residual_limit_px} px)"
+    return EdgeFit(
+        name=edge,
+        line=normal_form(slope, intercept, vertical=vertical),
+        segmented=len(pixels),
+        used=used,
+        removed=int(removed),
+        rms_px=rms,
+        points=np.ascontiguousarray(pts[:valid][kept[:valid]]),
     )

@@ -27,6 +27,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
+from types import ModuleType
 
 import cv2
 import numpy as np
@@ -37,6 +38,7 @@ from station.vision._edges import EDGES, Edge
 from station.vision._errors import EdgeNotFoundError, describe_missing
 from station.vision._geometry import VERTICAL
 from station.vision._image import Gray8
+from station.vision._kernels import compiled
 from station.vision._params import MeasureParams
 from station.vision._result import EdgeFit
 
@@ -46,7 +48,7 @@ FloatArray = npt.NDArray[np.float64]
 #: Edge order of every per-edge array below: EDGES (top, bottom, left, right); left and right are vertical.
 _VERTICAL = np.array([e in VERTICAL for e in EDGES])
 #: +1 where the intensity rises across the edge in the scan direction (+y or +x), -1 where it falls.
-_POLARITY = np.array([-1.0, 1.0, -1.0, 1.0], np.float32)
+_POLARITY = np.array([-1.0, 1.0, -1.0, 1.0])
 _ROWS = np.arange(len(EDGES))
 
 
@@ -106,22 +108,22 @@ def _profile_grid(
 
 
 @lru_cache(maxsize=16)
-def _moment_weights(n: int) -> npt.NDArray[np.float32]:
+def _moment_weights(n: int) -> FloatArray:
     """(2, n): ones and the positions 0.5 ... n - 0.5: the sum and first moment of n differences."""
-    weights = np.vstack([np.ones(n), np.arange(n) + 0.5]).astype(np.float32)
+    weights = np.vstack([np.ones(n), np.arange(n) + 0.5])
     weights.setflags(write=False)
     return weights
 
 
 @lru_cache(maxsize=16)
-def _ramp(n: int) -> npt.NDArray[np.float32]:
+def _ramp(n: int) -> FloatArray:
     """(n, 1) from 0 to 1: linear interpolation weights across a window of n samples."""
-    ramp = np.linspace(0.0, 1.0, n, dtype=np.float32)[:, None]
+    ramp = np.linspace(0.0, 1.0, n)[:, None]
     ramp.setflags(write=False)
     return ramp
 
 
-def _suppress_impulses(samples: npt.NDArray[np.float32], threshold: float) -> None:
+def _suppress_impulses(samples: FloatArray, threshold: float) -> None:
     """Replace isolated impulses (salt-and-pepper, hot pixels) in profiles across an edge, in place
     (``samples``: (sample, profile)).
 
@@ -169,7 +171,8 @@ def _profile_points(
 
     Profile i runs across edge ``owner[i]`` at ``along[i]`` (a column for horizontal edges, a row for
     vertical ones), in a window of ``2 * half + 2`` samples about the predicted position ``mu[i]``.
-    Profiles whose window does not fit inside the image are dropped.
+    Profiles whose window does not fit inside the image are dropped. The numpy reference of the
+    compiled kernel (``_ckernels.profiles``, run by ``_fine_compiled``).
     """
     h, w = img.shape
     n = 2 * half + 2
@@ -190,35 +193,31 @@ def _profile_points(
     start = np.where(vertical, along * w + base, base * w + along)
     stride = np.where(vertical, 1, w)
     flat = start[None, :] + np.arange(n)[:, None] * stride[None, :]
-    samples = np.take(img, flat).astype(np.float32)
+    samples = np.take(img, flat).astype(np.float64)
     if illumination is not None:
         # flat field: the illumination is smooth, linear over one window: divide the samples by it,
         # evaluated at the window's two ends (whole pixels)
         end = base + (n - 1)
         xs = np.concatenate([np.where(vertical, base, along), np.where(vertical, end, along)])
         ys = np.concatenate([np.where(vertical, along, base), np.where(vertical, along, end)])
-        v32 = illumination.at_pixels(xs, ys).astype(np.float32).reshape(2, -1)
-        samples /= v32[0][None, :] + (v32[1] - v32[0])[None, :] * _ramp(n)
+        v = illumination.at_pixels(xs, ys).reshape(2, -1)
+        samples /= v[0][None, :] + (v[1] - v[0])[None, :] * _ramp(n)
     _suppress_impulses(samples, impulse_dn)
     d = samples[1:] - samples[:-1]
     # The window of differences is exactly symmetric about mu: 2 half + 1 differences at positions
     # 0.5 ... 2 half + 0.5 from the first sample, the two end ones weighted by the fractions of their
     # pixels inside (1 - f and f, f = mu - floor(mu)), the others fully. The polarity cancels in the
     # centroid and the spread; only the strength takes its sign.
-    frac = (mu - np.floor(mu)).astype(np.float32)
+    frac = mu - np.floor(mu)
     d[0] *= 1.0 - frac
     d[-1] *= frac
-    pos = np.arange(n - 1, dtype=np.float32) + np.float32(0.5)
+    pos = np.arange(n - 1) + 0.5
     moments = _moment_weights(n - 1) @ d  # (sum, sum of positions): one pass over the differences
-    raw = moments[0].astype(np.float64)
+    raw = moments[0]
     strength = raw * _POLARITY[owner]
     safe = np.where(strength > 0, raw, 1.0)
-    rel = moments[1].astype(np.float64) / safe
-    spread = (
-        ((d * (pos[:, None] - rel[None, :].astype(np.float32)) ** 2).sum(axis=0) / safe)
-        if with_spread
-        else None
-    )
+    rel = moments[1] / safe
+    spread = ((d * (pos[:, None] - rel[None, :]) ** 2).sum(axis=0) / safe) if with_spread else None
     return _Profiles(owner, along.astype(np.float64), base + rel, strength, spread)
 
 
@@ -273,13 +272,38 @@ def _tls(
     return nx, ny, nx * mx + ny * my
 
 
+def _failure(
+    stage: int,
+    params: MeasureParams,
+    *,
+    count: int = 0,
+    contrast: float = 0.0,
+    good: int = 0,
+    rms: float = 0.0,
+) -> str:
+    """Why an edge was not found, by the first test it failed (``_ckernels.fine``'s stage numbers; the
+    numpy reference ``_fit_edges`` uses the same)."""
+    if stage == 1:
+        return (
+            f"only {count} of its profiles fit inside the frame (at least {params.min_edge_points}): "
+            "it runs too close to the border; keep the groove corners 10 px or more inside the frame"
+        )
+    if stage == 2:
+        return f"its contrast is {contrast:.1f} DN (at least {params.min_contrast_dn} DN)"
+    if stage == 3:
+        return f"only {good} profiles show the edge"
+    if stage == 4:
+        return "its points do not lie on a line"
+    return f"its points are not on a line (rms {rms:.2f} px)"
+
+
 def _fit_edges(
     p: _Profiles, models: _Models, params: MeasureParams, *, half: int, last: bool
 ) -> tuple[dict[Edge, EdgeFit], _Models, float | None, dict[Edge, str]]:
     """The four edges' lines from their profiles (module docstring, step 3), all edges at once.
 
     Returns (fits on the last pass, new models, median line spread, problems: per edge the reason it
-    was not found).
+    was not found). The numpy reference of the compiled kernel (``_fine_compiled``).
     """
     groups = _Groups(p.owner)
     owner, t, a = p.owner, p.along, p.across
@@ -294,23 +318,14 @@ def _fit_edges(
         ok[where] = False
 
     counts = groups.counts
-    fail(
-        counts < params.min_edge_points,
-        lambda i: (
-            f"only {counts[i]} of its profiles fit inside the frame (at least {params.min_edge_points}): "
-            "it runs too close to the border; keep the groove corners 10 px or more inside the frame"
-        ),
-    )
+    fail(counts < params.min_edge_points, lambda i: _failure(1, params, count=int(counts[i])))
     contrast = groups.median(p.strength, np.ones(owner.size, bool), counts)
-    fail(
-        contrast < params.min_contrast_dn,
-        lambda i: f"its contrast is {contrast[i]:.1f} DN (at least {params.min_contrast_dn} DN)",
-    )
+    fail(contrast < params.min_contrast_dn, lambda i: _failure(2, params, contrast=float(contrast[i])))
     tol = half / 2.0 if last else half - 2.0
     good = ok[owner] & (p.strength > params.min_contrast_fraction * contrast[owner])
     good &= np.abs(a - (models.slope[owner] * t + models.intercept[owner])) < tol
     n_good = groups.count(good)
-    fail(n_good < params.min_edge_points, lambda i: f"only {n_good[i]} profiles show the edge")
+    fail(n_good < params.min_edge_points, lambda i: _failure(3, params, good=int(n_good[i])))
     vertical = _VERTICAL[owner]
     x, y = np.where(vertical, a, t), np.where(vertical, t, a)
     # robust orthogonal fit: residuals first from the previous pass's line, outliers beyond
@@ -325,7 +340,7 @@ def _fit_edges(
         sigma = np.maximum(1.4826 * groups.median(dev, inliers, n_in), 1e-3)
         inliers = good & ok[owner] & (dev <= params.outlier_sigma * sigma[owner])
         n_in = groups.count(inliers)
-        fail(n_in < 3, lambda i: "its points do not lie on a line")
+        fail(n_in < 3, lambda i: _failure(4, params))
         inliers &= ok[owner]
         la, lb, lc = _tls(groups, x, y, inliers)
         resid = la[owner] * x + lb[owner] * y - lc[owner]
@@ -336,7 +351,7 @@ def _fit_edges(
     rms = np.sqrt(groups.weights(inliers) @ (resid * resid) / n_in)
     if last:  # earlier passes only steer the windows
         limit = params.residual_limit_px
-        fail(rms > limit, lambda i: f"its points are not on a line (rms {rms[i]:.2f} px)")
+        fail(rms > limit, lambda i: _failure(5, params, rms=float(rms[i])))
     fits: dict[Edge, EdgeFit] = {}
     if last and not problems:
         # the inliers keep the profiles' order, grouped by edge: one selection, split by the counts
@@ -397,6 +412,9 @@ def precise_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
         gray = np.clip(np.rint(img), 0, 255).astype(np.uint8)  # the coarse stage works on 8 bits
     coarse = coarse_cross(gray, params)
     models = _initial_models(coarse, (h, w))
+    ck = compiled()
+    if ck is not None:
+        return _fine_compiled(ck, img, models, coarse.illumination, params)
     # the first pass steers from the coarse cross (a pixel or two off at the frame's ends): wide window
     half = params.window_px if params.window_px is not None else 8
     fits: dict[Edge, EdgeFit] = {}
@@ -430,3 +448,65 @@ def precise_edges(gray: Gray8, params: MeasureParams) -> dict[Edge, EdgeFit]:
             sigma = math.sqrt(max(spread - 1.0 / 6.0, 0.1))
             half = int(np.clip(math.ceil(params.window_sigmas * sigma) + 1, 3, 12))
     return fits
+
+
+def _fine_compiled(
+    ck: ModuleType,
+    img: npt.NDArray[np.uint8] | npt.NDArray[np.float32],
+    models: _Models,
+    illumination: Illumination | None,
+    params: MeasureParams,
+) -> dict[Edge, EdgeFit]:
+    """``precise_edges``'s passes (the loop above, with ``_profile_points`` and ``_fit_edges``) in one
+    call of the compiled kernel ``_ckernels.fine``; the same results within 1e-12 px."""
+    h, w = img.shape
+    slope = np.array(models.slope, np.float64)
+    intercept = np.array(models.intercept, np.float64)
+    colcoef, yn = illumination.pixel_tables() if illumination is not None else (None, None)
+    stats = np.empty((9, len(EDGES)))
+    points = np.empty((2 * (w + h), 2))
+    stages, _, n_points = ck.fine(
+        np.ascontiguousarray(img),
+        slope,
+        intercept,
+        colcoef,
+        yn,
+        params.passes,
+        -1 if params.window_px is None else params.window_px,
+        params.window_sigmas,
+        params.profile_step,
+        params.corner_margin_px,
+        params.impulse_dn,
+        params.min_edge_points,
+        params.min_contrast_dn,
+        params.min_contrast_fraction,
+        params.outlier_sigma,
+        params.residual_limit_px,
+        stats,
+        points,
+    )
+    counts, contrast, n_good, n_in, rms, la, lb, lc = (row.tolist() for row in stats[:8])
+    if any(stages):
+        problems = {
+            EDGES[i]: _failure(
+                stage, params, count=int(counts[i]), contrast=contrast[i], good=int(n_good[i]), rms=rms[i]
+            )
+            for i, stage in enumerate(stages)
+            if stage
+        }
+        found = tuple(e for e in EDGES if e not in problems)
+        raise EdgeNotFoundError(describe_missing(problems), found=found)
+    used = [int(n) for n in n_in]
+    split = np.split(points[:n_points], np.cumsum(used[:-1]))
+    return {
+        edge: EdgeFit(
+            name=edge,
+            line=(la[i], lb[i], lc[i]),
+            segmented=int(counts[i]),
+            used=used[i],
+            removed=int(counts[i]) - used[i],
+            rms_px=rms[i],
+            points=np.ascontiguousarray(split[i]),
+        )
+        for i, edge in enumerate(EDGES)
+    }

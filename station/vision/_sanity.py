@@ -34,6 +34,7 @@ import numpy.typing as npt
 
 from station.vision._edges import Edge
 from station.vision._errors import MeasurementError
+from station.vision._kernels import compiled
 
 FloatArray = npt.NDArray[np.float64]
 Line = tuple[float, float, float]
@@ -108,20 +109,42 @@ class _Groove:
         c = (centre - _REDUCE // 2) / _REDUCE
         w = width_px / _REDUCE
         gap = max(3.0, 0.15 * width_px) / _REDUCE
-        t = np.arange(*_span(c, u, (sh, sw)), dtype=np.float64)
-        land = 0.5 * w + gap + np.array([0.0, 0.15, 0.3]) * w
-        s = np.concatenate([np.linspace(-0.3 * w, 0.3 * w, 5), land, -land])
-        mapx = (c[0] + t[None, :] * u[0] + s[:, None] * n[0]).astype(np.float32)
-        mapy = (c[1] + t[None, :] * u[1] + s[:, None] * n[1]).astype(np.float32)
+        t_from, t_to = _span(c, u, (sh, sw))
+        t = np.arange(t_from, t_to, dtype=np.float64)
+        ck = compiled()
+        if ck is not None:  # the same maps in one pass (``_kernels``)
+            mapx, mapy = np.empty((11, t.size), np.float32), np.empty((11, t.size), np.float32)
+            ck.groove_maps(
+                float(c[0]),
+                float(c[1]),
+                float(u[0]),
+                float(u[1]),
+                float(n[0]),
+                float(n[1]),
+                t_from,
+                w,
+                gap,
+                mapx,
+                mapy,
+            )
+        else:
+            land = 0.5 * w + gap + np.array([0.0, 0.15, 0.3]) * w
+            s = np.concatenate([np.linspace(-0.3 * w, 0.3 * w, 5), land, -land])
+            mapx = (c[0] + t[None, :] * u[0] + s[:, None] * n[0]).astype(np.float32)
+            mapy = (c[1] + t[None, :] * u[1] + s[:, None] * n[1]).astype(np.float32)
         values = cv2.remap(
             small, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan
         )
-        lands = values[5:]
-        seen = lands == lands  # not NaN: inside the frame
-        count = seen.sum(axis=0)
-        mean_land = np.add.reduce(lands, axis=0, where=seen) / np.maximum(count, 1)
-        groove = values[:5].max(axis=0)  # NaN where any of it is outside the frame: not seen
-        self.contrast = np.where(count > 0, mean_land - groove, np.nan)
+        if ck is not None:  # the same arithmetic in one pass (``_kernels``)
+            self.contrast = np.empty(values.shape[1])
+            ck.contrast(np.ascontiguousarray(values, np.float32), self.contrast)
+        else:
+            lands = values[5:]
+            seen = lands == lands  # not NaN: inside the frame
+            count = seen.sum(axis=0)
+            mean_land = np.add.reduce(lands, axis=0, where=seen) / np.maximum(count, 1)
+            groove = values[:5].max(axis=0)  # NaN where any of it is outside the frame: not seen
+            self.contrast = np.where(count > 0, mean_land - groove, np.nan)
         self.distance = t * _REDUCE  # along the groove from the crossing (px)
         # the coarse image turned so that the groove runs along its rows
         ch, cw = coarse.shape
@@ -135,7 +158,12 @@ class _Groove:
 
 
 def _second_band(g: _Groove) -> float | None:
-    """Distance (px) from the measured groove of another dark band parallel to it, if any."""
+    """Distance (px) from the measured groove of another dark band parallel to it, if any. By the
+    compiled kernel when selected (``_kernels``), else numpy (the reference)."""
+    ck = compiled()
+    if ck is not None:
+        away = ck.second_band(np.ascontiguousarray(g.turned, np.float32), g.row, g.width, SECOND_GROOVE_DEPTH)
+        return None if away is None else away * _COARSE
     finite = g.turned == g.turned  # not NaN: inside the frame
     count = finite.sum(axis=1)
     total = np.add.reduce(g.turned, axis=1, where=finite)
@@ -177,32 +205,7 @@ def check_single_cross(
     # turn the horizontal groove onto the rows; the vertical one onto the rows too (a further 90 deg)
     horizontal = _Groove(small, coarse, math.degrees(math.atan2(h_dir[1], h_dir[0])), centre, widths[0])
     vertical = _Groove(small, coarse, math.degrees(math.atan2(v_dir[1], v_dir[0])), centre, widths[1])
-    arms = [
-        ("right", horizontal, 1.0, widths[1], widths[0]),
-        ("left", horizontal, -1.0, widths[1], widths[0]),
-        ("lower", vertical, 1.0, widths[0], widths[1]),
-        ("upper", vertical, -1.0, widths[0], widths[1]),
-    ]
-    steps = []
-    for name, g, sign, other, width in arms:
-        start = 0.5 * other + max(6.0, 0.25 * width)  # past the perpendicular groove's rounded corners
-        t = sign * g.distance
-        on_arm = t >= start
-        steps.append((name, t[on_arm], g.contrast[on_arm], start))
-    every = np.concatenate([c for *_, c, _ in steps])
-    every = every[np.isfinite(every)]
-    if every.size == 0:
-        return
-    threshold = PRESENT_FRACTION * max(_quantile(every, 0.75), 5.0)
-    missing = []
-    for name, t, contrast, start in steps:
-        seen = np.isfinite(contrast)
-        if not seen.any():
-            continue  # too short to be seen: its crossing is at the border
-        present = seen & (contrast >= threshold)
-        farthest = float(t[present].max()) if present.any() else start
-        if float(t[seen].max()) - farthest > BORDER_TOLERANCE_PX + STEP_PX:
-            missing.append((name, farthest))
+    missing = _missing_arms(horizontal, vertical, widths)
     if missing:
         count = {1: "only three arms", 2: "only two arms", 3: "only one arm", 4: "no arm"}[len(missing)]
         detail = ", ".join(f"the {n} arm ends {d:.0f} px from the crossing" for n, d in missing)
@@ -217,3 +220,53 @@ def check_single_cross(
                 f"more than one crossing in the frame: a second {name} groove lies {away:.0f} px from "
                 "the measured one; frame a single crossing of the artifact"
             )
+
+
+#: The four arms: name, the groove it lies on (0 horizontal, 1 vertical), its direction along it.
+_ARMS = (("right", 0, 1.0), ("left", 0, -1.0), ("lower", 1, 1.0), ("upper", 1, -1.0))
+
+
+def _missing_arms(
+    horizontal: _Groove, vertical: _Groove, widths: tuple[float, float]
+) -> list[tuple[str, float]]:
+    """The arms that end inside the field of view: (name, distance of the farthest groove step, px).
+    By the compiled kernel when selected (``_kernels``), else numpy (the reference)."""
+    grooves = (horizontal, vertical)
+    ck = compiled()
+    if ck is not None:
+        ends = np.empty(len(_ARMS))
+        bits = ck.arms(
+            np.ascontiguousarray(horizontal.contrast, np.float64),
+            np.ascontiguousarray(horizontal.distance, np.float64),
+            np.ascontiguousarray(vertical.contrast, np.float64),
+            np.ascontiguousarray(vertical.distance, np.float64),
+            widths[0],
+            widths[1],
+            PRESENT_FRACTION,
+            BORDER_TOLERANCE_PX + STEP_PX,
+            ends,
+        )
+        return [(name, float(ends[i])) for i, (name, _, _) in enumerate(_ARMS) if bits >> i & 1]
+    steps = []
+    for name, which, sign in _ARMS:
+        g = grooves[which]
+        other, width = widths[1 - which], widths[which]
+        start = 0.5 * other + max(6.0, 0.25 * width)  # past the perpendicular groove's rounded corners
+        t = sign * g.distance
+        on_arm = t >= start
+        steps.append((name, t[on_arm], g.contrast[on_arm], start))
+    every = np.concatenate([c for *_, c, _ in steps])
+    every = every[np.isfinite(every)]
+    if every.size == 0:
+        return []
+    threshold = PRESENT_FRACTION * max(_quantile(every, 0.75), 5.0)
+    missing = []
+    for name, t, contrast, start in steps:
+        seen = np.isfinite(contrast)
+        if not seen.any():
+            continue  # too short to be seen: its crossing is at the border
+        present = seen & (contrast >= threshold)
+        farthest = float(t[present].max()) if present.any() else start
+        if float(t[seen].max()) - farthest > BORDER_TOLERANCE_PX + STEP_PX:
+            missing.append((name, farthest))
+    return missing

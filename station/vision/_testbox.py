@@ -23,6 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from station.vision._edges import Edge
+from station.vision._kernels import compiled
 
 Float32Image = npt.NDArray[np.float32]
 
@@ -172,10 +173,29 @@ def segment_edge_sparse(
     flat (row-major) indices of the pixels above it. Instead of full-image running maxima
     (``acceptance_mask``), the three rules are checked on each candidate's columns A, E and F
     gathered from the image; pixels below the threshold count as zero as they do in the
-    thresholded response.
+    thresholded response. By the compiled kernel when selected (``_kernels``: the same comparisons and
+    the section's sequential walk), else numpy (the reference).
     """
     h, w = response.shape
     axis, reverse = _SCAN[edge]
+    ck = compiled()
+    if ck is not None:
+        n_along = w if axis == 0 else h
+        out = np.empty(((n_along + skip - 1) // skip, 2), np.int64)
+        count = ck.testbox(
+            np.ascontiguousarray(response, np.float32),
+            float(sign),
+            axis,
+            reverse,
+            float(level),
+            np.ascontiguousarray(candidates, np.int64),
+            testheight,
+            testwidth,
+            skip,
+            backoff,
+            out,
+        )
+        return out[:count].astype(np.intp, copy=False)
     # scan geometry: "across" runs along the scan (column A's direction), "along" from column to column
     n_across, n_along = (h, w) if axis == 0 else (w, h)
     s_across, s_along = (w, 1) if axis == 0 else (1, w)

@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
-from typing import TypedDict, Unpack
+from pathlib import Path
+from typing import Any, TypedDict, Unpack
 
 import numpy as np
 import pytest
 
 from sim.artifact import Truth, pose_for_center_px, render
+from sim.imageset import render_random_set, render_validation_set
 
 Render = Callable[..., tuple[np.ndarray, Truth]]
 
@@ -45,3 +48,25 @@ def rendered() -> Render:
         return render(pose_for_center_px(cx, cy, **pose), preset=preset, rng=np.random.default_rng(seed))
 
     return _render
+
+
+#: Paper mode's pinned results on the benchmark's image sets (``test_paper_reference``).
+PAPER_REFERENCE = Path(__file__).parent / "data" / "paper_reference.json"
+
+
+def paper_reference() -> dict[str, Any]:
+    doc: dict[str, Any] = json.loads(PAPER_REFERENCE.read_text())
+    return doc
+
+
+@pytest.fixture(scope="session")
+def bench_sets(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The benchmark's image sets (random poses and the validation pattern, nominal and hard presets),
+    rendered exactly as ``make bench`` renders them."""
+    root = tmp_path_factory.mktemp("bench-sets")
+    for name, spec in paper_reference()["sets"].items():
+        if spec["kind"] == "random":
+            render_random_set(root / name, preset=spec["preset"], count=spec["count"], seed=spec["seed"])
+        else:
+            render_validation_set(root / name, preset=spec["preset"], seed=spec["seed"])
+    return root

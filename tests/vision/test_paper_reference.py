@@ -8,41 +8,31 @@ implementation may not move a single result.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 
-from sim.imageset import render_random_set, render_validation_set
 from station.imageio import read_image
 from station.vision import MeasurementError, MeasureParams, measure
+from station.vision._kernels import available, kernels
+from tests.vision.conftest import paper_reference
 
-REFERENCE = Path(__file__).parent / "data" / "paper_reference.json"
 TOL_PX = 1e-9
+#: Both implementations are pinned: the numpy reference and the compiled kernels (``_kernels``).
+KERNELS = ["numpy", pytest.param("c", marks=pytest.mark.skipif(not available(), reason="not built"))]
 
 
-def _reference() -> dict[str, Any]:
-    doc: dict[str, Any] = json.loads(REFERENCE.read_text())
-    return doc
+@pytest.mark.parametrize("kernel", KERNELS)
+@pytest.mark.parametrize("set_name", list(paper_reference()["sets"]))
+def test_paper_mode_reproduces_reference(bench_sets: Path, set_name: str, kernel: str) -> None:
+    with kernels(kernel):
+        _check_set(bench_sets, set_name)
 
 
-@pytest.fixture(scope="module")
-def bench_sets(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The benchmark's image sets, rendered exactly as ``make bench`` renders them."""
-    root = tmp_path_factory.mktemp("bench-sets")
-    for name, spec in _reference()["sets"].items():
-        if spec["kind"] == "random":
-            render_random_set(root / name, preset=spec["preset"], count=spec["count"], seed=spec["seed"])
-        else:
-            render_validation_set(root / name, preset=spec["preset"], seed=spec["seed"])
-    return root
-
-
-@pytest.mark.parametrize("set_name", list(_reference()["sets"]))
-def test_paper_mode_reproduces_reference(bench_sets: Path, set_name: str) -> None:
-    expected: dict[str, Any] = _reference()["results"][set_name]
+def _check_set(bench_sets: Path, set_name: str) -> None:
+    expected: dict[str, Any] = paper_reference()["results"][set_name]
     params = MeasureParams(mode="paper")
     files = sorted((bench_sets / set_name).glob("*.png"))
     assert [f.name for f in files] == sorted(expected)
