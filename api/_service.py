@@ -270,7 +270,7 @@ class StationService:
             self._config_snapshot = config.snapshot()
         busy = runner is not None
         devices: dict[str, Any] = {}
-        for name in ("robot", "camera", "table"):
+        for name in ("robot", "camera", "table", "distance_sensor"):
             present = self.devices is not None and getattr(self.devices, name) is not None
             if not present:
                 continue

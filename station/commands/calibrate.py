@@ -5,8 +5,8 @@ readings stay in the record), so the identification re-runs on any stored ``cali
 with another hold-out draw (``--param seed=3``) or after a software update. It reads the session's
 captures, its configuration snapshot (the cell: artifacts, optics, the sensor's mount) and its plan
 parameters, and prints the same results object as ``station run calibration``; ``--json`` prints
-``{"id", "kind", "state", "results"}`` as ``station run --json`` does. ``--out FILE`` writes the
-calibrated parameter set (versioned JSON) that ``Kinematics.from_calibration(FILE)`` and
+``{"id", "kind", "state", "results", "error"}``: ``station run --json``'s model. ``--out FILE`` writes
+the calibrated parameter set (versioned JSON) that ``Kinematics.from_calibration(FILE)`` and
 ``station robot --calibration FILE`` load. Nothing is moved, nothing in the record is changed.
 Exit 0 on success, 1 when the identification fails, 2 for usage errors (unknown session, wrong kind).
 """
@@ -14,7 +14,6 @@ Exit 0 on success, 1 when the identification fails, 2 for usage errors (unknown 
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -101,9 +100,10 @@ def run_calibrate(parser: argparse.ArgumentParser, args: argparse.Namespace) -> 
         path = CalibrationResult.model_validate(results["calibration"]).save(Path(args.out))
         print(f"calibration: {path}", file=sys.stderr if args.json else sys.stdout)
     if args.json:
-        print(
-            json.dumps({"id": session.id, "kind": session.kind, "state": session.state, "results": results})
+        outcome = SessionOutcome.model_construct(
+            id=session.id, kind=session.kind, state=RunnerState(session.state), results=results, error=None
         )
+        print(dumps(outcome))
     else:
         print(f"session {session.id} ({session.kind}), identified again:")
         print(summary(session.kind, results))
