@@ -53,7 +53,8 @@ def run_calibrate(parser: argparse.ArgumentParser, args: argparse.Namespace) -> 
     from station.plans import parse_params as validate_params
     from station.plans.calibration import CALIBRATION
     from station.record import RecordError
-    from station.runner import stored_captures
+    from station.resources import SessionOutcome, dumps
+    from station.runner import RunnerState, stored_captures
     from station.session import open_record
     from station.vision import MeasureParams
 
