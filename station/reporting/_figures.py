@@ -503,8 +503,11 @@ def singular_values_figure(r: CalibrationResults) -> NamedFigure:
     cut = i.rcond * top
     above = s >= cut
     ax.semilogy(k, shown, "-", color=LBAR_C, lw=0.6)
-    ax.semilogy(k[above], shown[above], "o", color=POINT_C, ms=4, label=f"{int(above.sum())} above rcond")
-    ax.semilogy(
+    (hi,) = ax.semilogy(
+        k[above], shown[above], "o", color=POINT_C, ms=4, label=f"{int(above.sum())} above rcond"
+    )
+    hi.set_gid("singular-values-above")
+    (lo,) = ax.semilogy(
         k[~above],
         shown[~above],
         "o",
@@ -513,6 +516,7 @@ def singular_values_figure(r: CalibrationResults) -> NamedFigure:
         ms=5,
         label=f"{int((~above).sum())} below rcond",
     )
+    lo.set_gid("singular-values-below")
     line = ax.axhline(cut, color=ERROR_C, ls="--", lw=1.0, label=f"rcond × largest ({i.rcond:.0e})")
     line.set_gid("rcond-line")
     ax.set_xlabel("index (descending)")
