@@ -267,7 +267,7 @@ def test_succeeded_session_with_malformed_results_is_refused(tmp_path: Path) -> 
     ("change", "message"),
     [
         ({"id": None}, "lacks 'id'"),
-        ({"kind": "calibration"}, "unknown kind 'calibration'"),
+        ({"kind": "hand-eye"}, "unknown kind 'hand-eye'"),
         ({"results": [1, 2]}, "results must be an object"),
     ],
 )

@@ -41,6 +41,7 @@ _TITLES = {
     "validation": "Validation against the X-Y table",
     "repeatability": "Pose repeatability",
     "sweep": "Parameter study",
+    "calibration": "Kinematic calibration",
     "reanalyse": "Re-analysis",
 }
 

@@ -6,7 +6,8 @@ has results) and, for a session that did not succeed, optionally ``error``. Resu
 pydantic so that a malformed record is named precisely (``results.positions.3.measured_um``) instead of
 failing somewhere inside matplotlib.
 
-Units are in the key names: validation in um, repeatability in mm, sweep trials in um.
+Units are in the key names: validation in um, repeatability in mm, sweep trials in um; calibration's
+relative error in um, its residuals in mm, each parameter with its own ``unit`` (mm or deg).
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field
 from pydantic import ValidationError as PydanticValidationError
 
-KINDS = ("validation", "repeatability", "sweep", "reanalyse")
+KINDS = ("validation", "repeatability", "sweep", "calibration", "reanalyse")
 
 Point = tuple[float, float]
 
@@ -140,7 +141,114 @@ class SweepResults(_Model):
     source_session: str | int | None = None
 
 
-Results = ValidationResults | RepeatabilityResults | SweepResults
+class RelativeError(_Model):
+    """The issue's figure (um): the mean in-plane distance between held-out configurations' crossings of one
+    placement, with the nominal (``before``) and the calibrated (``after``) model, and the ``floor`` (what
+    repeatability and noise leave). Any may be missing (too few held-out pairs, no return captures)."""
+
+    before: float | None = None
+    after: float | None = None
+    floor: float | None = None
+
+
+class CalibrationParameter(_Model):
+    """One model parameter: nominal and estimate in ``unit``; ``sigma`` and ``interval`` (95 %) only when
+    identified; ``structural``: no pose set identifies it (it stays at nominal)."""
+
+    name: str
+    unit: str = ""
+    nominal: float
+    estimate: float
+    interval: tuple[float, float] | None = None
+    sigma: float | None = None
+    identified: bool
+    structural: bool = False
+
+
+class ResidualSummary(_Model):
+    """Residuals of a set of observations (mm): the image's (at the focal plane) and the sensor's."""
+
+    n: int
+    rms_xy_mm: float
+    max_xy_mm: float
+    n_z: int = 0
+    rms_z_mm: float | None = None
+    max_z_mm: float | None = None
+
+
+class Deficiency(_Model):
+    """A parameter (or combination) the data cannot determine, as the combination of others it trades
+    with (``{other: k}`` in natural units) and how far from exact (``residual``; 0 = indistinguishable)."""
+
+    name: str
+    combination: dict[str, float] = Field(default_factory=dict)
+    residual: float | None = None
+    reason: str = ""
+
+
+class Identifiability(_Model):
+    """The SVD of the column-scaled Jacobian of all parameters (singular values descending), the
+    structural list, and what this pose set fails to determine (``deficient``, ``dropped``)."""
+
+    rcond: float
+    singular_values: list[float] = Field(default_factory=list)
+    null_dimension: int
+    structural: list[Deficiency] = Field(default_factory=list)
+    structural_verified: bool | None = None
+    deficient: list[str] = Field(default_factory=list)
+    dropped: list[Deficiency] = Field(default_factory=list)
+
+
+class CrossValidation(_Model):
+    held_out_configurations: list[int] = Field(default_factory=list)
+    n_observations: int = 0
+    before: ResidualSummary | None = None
+    after: ResidualSummary | None = None
+
+
+class FitSummary(_Model):
+    method: str
+    evaluations: int
+    status: int
+    message: str = ""
+    observations: int
+    residuals: int
+    dof: int
+    s2: float | None = None
+
+
+class CalibrationDocument(_Model):
+    """The parts of the versioned ``CalibrationResult`` JSON (``station.calibration``) a report shows."""
+
+    schema_version: int | None = None
+    software_version: str | None = None
+    created: str | None = None
+    identifiability: Identifiability
+    residuals: dict[str, ResidualSummary] = Field(default_factory=dict)
+    cross_validation: CrossValidation | None = None
+    fit: FitSummary | None = None
+    sigmas_mm: dict[str, float] = Field(default_factory=dict)
+
+
+class CalibrationResults(_Model):
+    """A calibration session's results (``station.calibration_session.analyse_calibration``)."""
+
+    relative_error_um: RelativeError
+    floor_source: str | None = None
+    condition_number: float
+    unidentifiable: list[str] = Field(default_factory=list)
+    identified_count: int
+    parameters: list[CalibrationParameter]
+    observations: int | None = None
+    configurations: int | None = None
+    placements: list[int] = Field(default_factory=list)
+    held_out_configurations: list[int] = Field(default_factory=list)
+    planned_configurations: int | None = None
+    left_out: list[Any] = Field(default_factory=list)
+    calibration: CalibrationDocument
+
+
+Results = ValidationResults | RepeatabilityResults | SweepResults | CalibrationResults
 
 
 @dataclass(frozen=True)
@@ -171,10 +279,13 @@ class Session:
         return self.state == "succeeded"
 
 
-_PARSERS: dict[str, type[ValidationResults] | type[RepeatabilityResults] | type[SweepResults]] = {
+_PARSERS: dict[
+    str, type[ValidationResults] | type[RepeatabilityResults] | type[SweepResults] | type[CalibrationResults]
+] = {
     "validation": ValidationResults,
     "repeatability": RepeatabilityResults,
     "sweep": SweepResults,
+    "calibration": CalibrationResults,
 }
 
 

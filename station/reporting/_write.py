@@ -35,7 +35,9 @@ def text_tables(session: Mapping[str, Any]) -> dict[str, str]:
 
     Names: ``session``, ``devices``, ``parameters``, then per kind ``validation`` and ``positions``;
     ``repeatability`` (the seed's Table 2); ``sweep`` (Table 1) and ``seed_table_1`` when the trials are
-    the seed's. A session without results has only the first three. ReportError if it is malformed.
+    the seed's; ``relative_error``, ``residuals``, ``estimates``, ``identifiability``, ``structural`` and
+    (when the pose set leaves directions undetermined) ``deficiencies`` for a calibration. A session
+    without results has only the first three. ReportError if it is malformed.
     """
     return {name: t.text() for name, t in all_tables(parse_session(session)).items()}
 
@@ -70,7 +72,8 @@ def write_report(session: Mapping[str, Any], out_dir: Path) -> ReportFiles:
 
     Files: ``report.html`` (self-contained: tables as HTML, figures embedded as SVG), and per figure
     ``NAME.png`` and ``NAME.svg``: ``validation-raw`` and ``validation-parallelogram`` (seed Figs. 14-15),
-    ``repeatability`` (Figs. 16-17) and ``repeatability-rp``, or ``sweep`` (Table 1 as bars). A session
+    ``repeatability`` (Figs. 16-17) and ``repeatability-rp``, ``sweep`` (Table 1 as bars), or
+    ``calibration-residuals``, ``calibration-parameters`` and ``calibration-singular-values``. A session
     that did not succeed gets a report that says so, with its error and whatever results it has.
 
     Raises
