@@ -23,10 +23,9 @@ import numpy as np
 from sim import calibration_sessions as synthetic
 from station.calibration import (
     CalibrationModel,
-    equivalent_errors,
     identify,
     relative_error_um,
-    reported_name,
+    true_values,
 )
 from station.kinematics import A465_DH, Kinematics
 
@@ -41,15 +40,8 @@ def one(seed: int) -> dict[str, float]:
     result = identify(observations, setup, holdout=holdout)
     seconds = time.perf_counter() - start
     model = CalibrationModel(setup)
-    delta = equivalent_errors(
-        model,
-        truth.kinematics.dh,
-        truth.kinematics.tool,
-        {k: (truth.points[k], truth.normals[k]) for k in truth.points},
-    )
-    values = model.nominal + delta
-    values[model.index["d2"]] += model.nominal[model.index["d3"]]
-    true = {reported_name(n) if n == "d2" else n: float(v) for n, v in zip(model.names, values, strict=True)}
+    artifacts = {k: (truth.points[k], truth.normals[k]) for k in truth.points}
+    true = true_values(model, truth.kinematics.dh, truth.kinematics.tool, artifacts)
     z = np.array([(p.estimate - true[p.name]) / p.sigma for p in result.parameters if p.sigma])
     held = [o for o in observations if o.configuration in set(holdout)]
     args = (synthetic.CAMERA, synthetic.MOUNT)

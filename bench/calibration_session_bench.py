@@ -67,7 +67,8 @@ def main() -> None:
         return ", ".join("not in view" if v is None else f"{v:.0f}" for v in values)
 
     print(
-        f"session: {seconds:.0f} s wall, {r['configurations']} of {r['planned_configurations']} configurations"
+        f"session: {seconds:.0f} s wall,"
+        f" {r['configurations']} of {r['planned_configurations']} configurations"
     )
     print(f"  {r['observations']} captures used, {len(r['held_out_configurations'])} configurations held out")
     print(

@@ -21,8 +21,7 @@ import numpy as np
 import numpy.typing as npt
 
 from sim.world import World, WorldSpec
-from station.calibration import CalibrationModel, CalibrationResult, equivalent_errors, relative_error_um
-from station.calibration import reported_name as calibration_name
+from station.calibration import CalibrationModel, CalibrationResult, relative_error_um, true_values
 from station.calibration_session import calibration_setup, observations_from
 from station.config import StationDevices
 from station.kinematics import rot_x, rot_y, rot_z, transform
@@ -54,12 +53,7 @@ def truth_report(
     artifacts = {
         k: (T[:3, 3], T[:3, 2]) for k, T in enumerate(world.artifact_poses()) if k in setup.artifacts
     }
-    delta = equivalent_errors(model, world.true_dh, world.kinematics.tool, artifacts)
-    values = model.nominal + delta
-    values[model.index["d2"]] += model.nominal[model.index["d3"]]
-    truth = {
-        calibration_name(n) if n == "d2" else n: float(v) for n, v in zip(model.names, values, strict=True)
-    }
+    truth = true_values(model, world.true_dh, world.kinematics.tool, artifacts)
     rows: list[dict[str, Any]] = []
     for p in result.parameters:
         if not p.identified or not p.sigma or p.name not in truth:

@@ -25,7 +25,7 @@ from station.calibration._observations import (
     observation_arrays,
 )
 from station.calibration._result import SCHEMA_VERSION, CalibrationResult, ParameterEstimate, ResidualSummary
-from station.calibration._truth import equivalent_errors
+from station.calibration._truth import equivalent_errors, true_values
 
 __all__ = [
     "REPORTED_NAMES",
@@ -57,4 +57,5 @@ __all__ = [
     "relative_error_um",
     "reported_name",
     "residual_summary",
+    "true_values",
 ]

@@ -99,4 +99,19 @@ def _tilt_angles(n0: FloatArray, n: FloatArray) -> tuple[float, float]:
     return rx, math.remainder(ry, 2 * math.pi)
 
 
-__all__ = ["equivalent_errors"]
+def true_values(
+    model: CalibrationModel,
+    true_dh: Sequence[DHRow],
+    true_tool: npt.ArrayLike,
+    true_artifacts: Mapping[int, tuple[npt.ArrayLike, npt.ArrayLike]],
+) -> dict[str, float]:
+    """A known true arm's value of every parameter, by reported name (natural units, ``d2+d3`` as the
+    sum): what an identification's estimates are compared with in tests and benchmarks."""
+    from station.calibration._identifiability import reported_name
+
+    values = model.nominal + equivalent_errors(model, true_dh, true_tool, true_artifacts)
+    values[model.index["d2"]] += model.nominal[model.index["d3"]]
+    return {reported_name(n) if n == "d2" else n: float(v) for n, v in zip(model.names, values, strict=True)}
+
+
+__all__ = ["equivalent_errors", "true_values"]

@@ -15,7 +15,7 @@ from station.calibration import (
     identify,
     observation_arrays,
     relative_error_um,
-    reported_name,
+    true_values,
 )
 from station.kinematics import A465_DH, Kinematics
 
@@ -26,15 +26,8 @@ def _truth_values(fitted) -> dict[str, float]:
     """The truth in the identified parameterisation, by reported name (natural units)."""
     model = CalibrationModel(synthetic.setup_for())
     truth = fitted.truth
-    delta = equivalent_errors(
-        model,
-        truth.kinematics.dh,
-        truth.kinematics.tool,
-        {k: (truth.points[k], truth.normals[k]) for k in truth.points},
-    )
-    values = model.nominal + delta
-    values[model.index["d2"]] += model.nominal[model.index["d3"]]
-    return {reported_name(n) if n == "d2" else n: float(v) for n, v in zip(model.names, values, strict=True)}
+    artifacts = {k: (truth.points[k], truth.normals[k]) for k in truth.points}
+    return true_values(model, truth.kinematics.dh, truth.kinematics.tool, artifacts)
 
 
 def test_every_parameter_outside_the_structural_list_is_identified(fitted):

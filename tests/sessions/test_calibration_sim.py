@@ -28,6 +28,17 @@ from station.runner import stored_captures
 from station.session import SessionOutcome, open_record, run_session
 from station.vision import MeasureParams
 
+
+def calibrate(data: Path, *args: str) -> subprocess.CompletedProcess[str]:
+    """``station calibrate ARGS --data DATA`` in a process of its own."""
+    return subprocess.run(
+        [sys.executable, "-m", "station.cli", "calibrate", *args, "--data", str(data)],
+        capture_output=True,
+        text=True,
+        timeout=240,
+    )
+
+
 SMALL = {"turns_deg": [-20.0, 70.0, 160.0], "settle_s": 0.05}
 
 
@@ -78,23 +89,7 @@ def test_station_calibrate_identifies_the_stored_session_again(
 ) -> None:
     data, outcome = session
     out = tmp_path / "cal.json"
-    proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "station.cli",
-            "calibrate",
-            outcome.id,
-            "--data",
-            str(data),
-            "--json",
-            "--out",
-            str(out),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=240,
-    )
+    proc = calibrate(data, outcome.id, "--json", "--out", str(out))
     assert proc.returncode == 0, proc.stderr
     again: dict[str, Any] = json.loads(proc.stdout.strip().splitlines()[-1])
     assert again["id"] == outcome.id
@@ -107,23 +102,7 @@ def test_station_calibrate_identifies_the_stored_session_again(
     assert [r.a_mm for r in kin.dh] == pytest.approx([r.a_mm for r in saved.kinematics().dh])
     assert saved.identified_count == outcome.results["identified_count"]
     # another hold-out draw: another split, figures of the same size
-    proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "station.cli",
-            "calibrate",
-            outcome.id,
-            "--data",
-            str(data),
-            "--json",
-            "--param",
-            "seed=5",
-        ],
-        capture_output=True,
-        text=True,
-        timeout=240,
-    )
+    proc = calibrate(data, outcome.id, "--json", "--param", "seed=5")
     assert proc.returncode == 0, proc.stderr
     other = json.loads(proc.stdout.strip().splitlines()[-1])["results"]
     assert other["held_out_configurations"] != outcome.results["held_out_configurations"]
@@ -133,17 +112,9 @@ def test_station_calibrate_identifies_the_stored_session_again(
 def test_station_calibrate_refuses_what_it_cannot_identify(session: tuple[Path, SessionOutcome]) -> None:
     data, outcome = session
 
-    def calibrate(*args: str) -> subprocess.CompletedProcess[str]:
-        return subprocess.run(
-            [sys.executable, "-m", "station.cli", "calibrate", *args, "--data", str(data)],
-            capture_output=True,
-            text=True,
-            timeout=120,
-        )
-
-    proc = calibrate("nosuchsession")
+    proc = calibrate(data, "nosuchsession")
     assert proc.returncode == 2
     assert "nosuchsession" in proc.stderr
-    proc = calibrate(outcome.id, "--param", "turns_deg=[0]")
+    proc = calibrate(data, outcome.id, "--param", "turns_deg=[0]")
     assert proc.returncode == 2
     assert "only the analysis's parameters can change" in proc.stderr
