@@ -829,7 +829,9 @@ class SessionRunner:
             seen = AlignInput(joints, center, z_mm, (int(image.shape[1]), int(image.shape[0])), error)
             correction = action.correct(seen)
             if correction is None:
-                self._offset_base = joints
+                # offsets start from where the controller was commanded (its own 0.001 deg grid)
+                commanded = meta.get("commanded_joints_deg", joints)
+                self._offset_base = tuple(float(a) for a in commanded)
                 return {"aligned_joints_deg": list(joints), "corrections": corrections}
             if iteration == action.max_iterations:
                 break

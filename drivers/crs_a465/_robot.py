@@ -710,7 +710,7 @@ class CrsA465:
 
     def _finish(self, reached: tuple[float, ...], target: tuple[float, ...]) -> None:
         axis, diff = worst_axis(reached, target)
-        if abs(diff) > self.motion.resolution_deg:
+        if abs(diff) > self.motion.resolution_deg + 1e-9:  # exactly one resolution step is arrived
             raise ArrivalError(
                 f"after the move the controller commands joint {axis} at {reached[axis - 1]:.3f} deg,"
                 f" not the target {target[axis - 1]:.3f} deg; read the position (where) before going on"
