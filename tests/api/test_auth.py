@@ -95,5 +95,5 @@ def test_station_redacts_secrets(served: Served) -> None:
         doc = c.get("/api/v1/station").json()
     assert doc["config"]["api"]["token"] == "***"
     assert TOKEN not in str(doc)
-    assert set(doc["devices"]) == {"robot", "camera", "table"}
+    assert set(doc["devices"]) == {"robot", "camera", "table", "distance_sensor"}
     assert doc["devices"]["robot"]["state"] == "idle"
