@@ -224,3 +224,20 @@ def test_the_cli_and_the_api_render_one_session_model(
     row = served.service.record.get_session(sid)
     assert json.loads(dumps(SessionOutcome.of(row))) == results
     assert SessionResource.model_validate(resource).id == sid  # the API's body is the model's
+
+
+def test_a_calibration_session_runs_through_the_sessions_resource(served: Served) -> None:
+    """The calibration plan through the API: created, pre-flighted, progressing; its bad parameters are
+    a 422 naming the field; aborted from the API (the full session is tested in tests/sessions)."""
+    with served.client() as c:
+        bad = c.post("/api/v1/sessions", json={"kind": "calibration", "params": {"turns_deg": [45]}})
+        assert bad.status_code == 422, bad.text
+        assert "turns_deg" in bad.text
+        r = c.post("/api/v1/sessions", json={"kind": "calibration", "params": {"turns_deg": [-20.0, 160.0]}})
+        assert r.status_code == 201, r.text
+        doc = r.json()
+        assert doc["kind"] == "calibration"
+        running = wait_state(c, doc["id"], {"running"})
+        assert running["progress"]["total"] == 2 * (1 + 4 * 4)  # 2 turns x the sim cell's 17 branches
+        assert c.post(f"/api/v1/sessions/{doc['id']}/actions", json={"action": "abort"}).status_code == 201
+        assert wait_final(c, doc["id"])["state"] == "aborted"
