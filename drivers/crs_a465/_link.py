@@ -26,6 +26,8 @@ except ImportError:  # pragma: no cover - Windows
     _TermiosError = OSError  # type: ignore[assignment,misc]
 
 LINK_ERRORS: tuple[type[Exception], ...] = (serial.SerialException, OSError, _TermiosError)
+# pyserial on a port closed by another thread while in use: its file descriptor is None mid-call
+CLOSED_UNDER_US: tuple[type[Exception], ...] = (TypeError, AttributeError)
 """What pyserial and the OS raise when the line goes away."""
 
 
@@ -152,6 +154,11 @@ class SerialTransport:
             " then connect() again"
         )
 
+    def _closed_under_us(self, exc: Exception) -> DeviceConnectionError:
+        return DeviceConnectionError(
+            f"the port {self.name!r} was closed while in use ({type(exc).__name__}: {exc}); connect() again"
+        )
+
     # ---------------------------------------------------------------- I/O
 
     def write_bytes(self, data: bytes) -> None:
@@ -163,6 +170,8 @@ class SerialTransport:
             port.flush()
         except LINK_ERRORS as exc:
             raise self._lost(exc) from exc
+        except CLOSED_UNDER_US as exc:
+            raise self._closed_under_us(exc) from exc
 
     def write_line(self, text: str) -> None:
         """Write one command line, ended with the configured line ending."""
@@ -173,6 +182,8 @@ class SerialTransport:
             port.flush()
         except LINK_ERRORS as exc:
             raise self._lost(exc) from exc
+        except CLOSED_UNDER_US as exc:
+            raise self._closed_under_us(exc) from exc
 
     def _read_some(self) -> bytes:
         port = self._port()
@@ -181,6 +192,8 @@ class SerialTransport:
             data: bytes = port.read(max(1, waiting))
         except LINK_ERRORS as exc:
             raise self._lost(exc) from exc
+        except CLOSED_UNDER_US as exc:
+            raise self._closed_under_us(exc) from exc
         return data
 
     def read_until_prompt(
