@@ -39,7 +39,7 @@ layers: setup
 	$(BIN)/python tools/check_layers.py
 
 pytest: setup
-	$(BIN)/python -m pytest -n 2 -q
+	$(BIN)/python -m pytest -n 2 --dist loadgroup -q
 
 test: lint typecheck layers pytest
 

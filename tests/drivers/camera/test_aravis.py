@@ -30,6 +30,11 @@ from station.devices import (
 from .conftest import require_aravis
 from .gv_simulator import ADDRESS, DEVICE_ID, SERIAL
 
+# The GigE Vision simulator keeps time (heartbeats, packet timeouts) and misses it when starved of CPU;
+# the calibration session is the suite's heaviest test: one xdist group keeps them off each other's
+# worker's back (``-n 2 --dist loadgroup``: a group runs on one worker, one test at a time).
+pytestmark = pytest.mark.xdist_group("gige-and-heavy")
+
 
 @pytest.fixture
 def aravis() -> Any:
