@@ -39,7 +39,8 @@ layers: setup
 	$(BIN)/python tools/check_layers.py
 
 pytest: setup
-	$(BIN)/python -m pytest -n 2 --dist loadgroup -q
+	$(BIN)/python -m pytest -n 2 -q -m "not gige"
+	$(BIN)/python -m pytest -q -m gige
 
 test: lint typecheck layers pytest
 

@@ -28,11 +28,6 @@ from station.runner import stored_captures
 from station.session import SessionOutcome, open_record, run_session
 from station.vision import MeasureParams
 
-# The GigE Vision simulator keeps time (heartbeats, packet timeouts) and misses it when starved of CPU;
-# the calibration session is the suite's heaviest test: one xdist group keeps them off each other's
-# worker's back (``-n 2 --dist loadgroup``: a group runs on one worker, one test at a time).
-pytestmark = pytest.mark.xdist_group("gige-and-heavy")
-
 
 def calibrate(data: Path, *args: str) -> subprocess.CompletedProcess[str]:
     """``station calibrate ARGS --data DATA`` in a process of its own."""

@@ -30,10 +30,9 @@ from station.devices import (
 from .conftest import require_aravis
 from .gv_simulator import ADDRESS, DEVICE_ID, SERIAL
 
-# The GigE Vision simulator keeps time (heartbeats, packet timeouts) and misses it when starved of CPU;
-# the calibration session is the suite's heaviest test: one xdist group keeps them off each other's
-# worker's back (``-n 2 --dist loadgroup``: a group runs on one worker, one test at a time).
-pytestmark = pytest.mark.xdist_group("gige-and-heavy")
+# The GigE Vision simulator keeps time (heartbeats, packet timeouts) and misses it when starved of CPU:
+# `make test` runs these tests alone, after the parallel ones (marker ``gige``).
+pytestmark = pytest.mark.gige
 
 
 @pytest.fixture

@@ -28,10 +28,9 @@ from .conftest import require_aravis
 from .fakes import FakeMonotonic, FakeV4L2Capture
 from .gv_simulator import ADDRESS, GvSimulator
 
-# The GigE Vision simulator keeps time (heartbeats, packet timeouts) and misses it when starved of CPU;
-# the calibration session is the suite's heaviest test: one xdist group keeps them off each other's
-# worker's back (``-n 2 --dist loadgroup``: a group runs on one worker, one test at a time).
-pytestmark = pytest.mark.xdist_group("gige-and-heavy")
+# The GigE Vision simulator keeps time (heartbeats, packet timeouts) and misses it when starved of CPU:
+# `make test` runs these tests alone, after the parallel ones (marker ``gige``).
+pytestmark = pytest.mark.gige
 
 ROI = Roi(0, 0, 64, 48)
 FAST_HZ = 100.0
