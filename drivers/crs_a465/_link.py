@@ -16,16 +16,11 @@ from typing import Literal
 import serial
 from pydantic import BaseModel, ConfigDict, Field
 
-from station.devices import DeviceBusyError, DeviceConnectionError, DeviceTimeoutError
+from drivers._serial import LINK_ERRORS, open_port
+from station.devices import DeviceConnectionError, DeviceTimeoutError
 
 log = logging.getLogger(__name__)
 
-try:  # pyserial's POSIX flush() raises termios.error, which is not an OSError
-    from termios import error as _TermiosError  # noqa: N812
-except ImportError:  # pragma: no cover - Windows
-    _TermiosError = OSError  # type: ignore[assignment,misc]
-
-LINK_ERRORS: tuple[type[Exception], ...] = (serial.SerialException, OSError, _TermiosError)
 # pyserial on a port closed by another thread while in use: its file descriptor is None mid-call
 CLOSED_UNDER_US: tuple[type[Exception], ...] = (TypeError, AttributeError)
 """What pyserial and the OS raise when the line goes away."""
@@ -87,45 +82,18 @@ class SerialTransport:
         if self.is_open:
             return
         s = self.settings
-        try:
-            if self._injected:
-                assert self._serial is not None
-                self._serial.timeout = s.poll_s
-                self._serial.write_timeout = s.reply_timeout_s
-                if not self._serial.is_open:
-                    self._serial.open()
-            else:
-                assert isinstance(self._port_arg, str)
-                port = serial.serial_for_url(
-                    self._port_arg,
-                    do_not_open=True,
-                    baudrate=s.baudrate,
-                    bytesize=s.bytesize,
-                    parity=s.parity,
-                    stopbits=s.stopbits,
-                    xonxoff=s.xonxoff,
-                    rtscts=s.rtscts,
-                    timeout=s.poll_s,
-                    write_timeout=s.reply_timeout_s,
-                    exclusive=True,
-                )
-                port.open()
-                self._serial = port
-        except serial.SerialException as exc:
-            self._serial = None if not self._injected else self._serial
-            if "exclusively lock" in str(exc):
-                raise DeviceBusyError(
-                    f"{self.name!r} is in use by another program (it holds the port's exclusive lock):"
-                    " close that program, then connect again"
-                ) from exc
-            raise DeviceConnectionError(
-                f"cannot open {self.name!r}: {exc}; check the port name and that no other program holds it"
-            ) from exc
-        except (OSError, _TermiosError, ValueError) as exc:
-            self._serial = None if not self._injected else self._serial
-            raise DeviceConnectionError(
-                f"cannot open {self.name!r}: {exc}; check the port name and that no other program holds it"
-            ) from exc
+        self._serial = open_port(
+            self._port_arg,
+            str(self.name),
+            timeout_s=s.poll_s,
+            write_timeout_s=s.reply_timeout_s,
+            baudrate=s.baudrate,
+            bytesize=s.bytesize,
+            parity=s.parity,
+            stopbits=s.stopbits,
+            xonxoff=s.xonxoff,
+            rtscts=s.rtscts,
+        )
         log.debug("opened %s (%s %d%s%s)", self.name, s.baudrate, s.bytesize, s.parity, s.stopbits)
 
     def close(self) -> None:
