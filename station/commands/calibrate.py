@@ -7,7 +7,8 @@ captures, its configuration snapshot (the cell: artifacts, optics, the sensor's 
 parameters, and prints the same results object as ``station run calibration``; ``--json`` prints
 ``{"id", "kind", "state", "results", "error"}``: ``station run --json``'s model. ``--out FILE`` writes
 the calibrated parameter set (versioned JSON) that ``Kinematics.from_calibration(FILE)`` and
-``station robot --calibration FILE`` load. Nothing is moved, nothing in the record is changed.
+``station robot ... move-camera ... --calibration FILE`` load. Nothing is moved, nothing in the record
+is changed.
 Exit 0 on success, 1 when the identification fails, 2 for usage errors (unknown session, wrong kind).
 """
 
