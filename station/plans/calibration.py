@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -83,7 +83,6 @@ class CalibrationCell:
     sensor_mount: FloatArray | None = None
     max_step_deg: float = 30.0
     reference_joints_deg: tuple[float, ...] | None = None
-    extra: dict[str, Any] = field(default_factory=dict)
 
     def depth_from_sensor(self, z_mm: float) -> float:
         """The artifact plane's depth along the optical axis from a sensor reading (beam parallel to the
@@ -92,13 +91,6 @@ class CalibrationCell:
             raise PlanError("the cell has no distance sensor mount")
         R, t = self.sensor_mount[:3, :3], self.sensor_mount[:3, 3]
         return float(R[2, 2] * z_mm + t[2])
-
-    def sensor_reading_at(self, depth_mm: float) -> float:
-        """The reading the sensor gives with the artifact plane square to the axis at ``depth_mm``."""
-        if self.sensor_mount is None:
-            raise PlanError("the cell has no distance sensor mount")
-        R, t = self.sensor_mount[:3, :3], self.sensor_mount[:3, 3]
-        return float((depth_mm - t[2]) / R[2, 2])
 
 
 class CalibrationParams(BaseModel):
