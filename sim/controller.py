@@ -22,15 +22,11 @@ or as a process shared by several programs: ``station sim controller`` prints th
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import os
-import pty
-import select
 import tempfile
 import threading
 import time
-import tty
 from collections import deque
 from collections.abc import Callable
 from pathlib import Path
@@ -49,6 +45,7 @@ from sim._controller_faults import (
     parse_fault,
 )
 from sim._controller_shell import Outcome, Shell
+from sim._pty import PtyPort
 from sim.arm_errors import DEFAULT_ARM_ERRORS
 from station.kinematics import A465_JOINT_LIMITS_DEG, Kinematics
 
@@ -178,14 +175,11 @@ class ControllerTwin:
         self._received: deque[str] = deque(maxlen=s.log_limit)
         self._commands_seen = 0
         self._faults: list[tuple[int, Fault]] = [(f.at, f) for f in s.faults]
-        self._master: int | None = None
-        self._slave: int | None = None
-        self._pty_path: str | None = None
+        self._pty = PtyPort()
         self._link_dir: tempfile.TemporaryDirectory[str] | None = None
         self._link: str | None = None if s.link in (None, "auto") else s.link
         self._thread: threading.Thread | None = None
         self._closing = threading.Event()
-        self._wake_r, self._wake_w = os.pipe()
         self._unplug_requested = threading.Event()
         self._replug_requested = threading.Event()
         self._replugged = threading.Event()
@@ -219,18 +213,15 @@ class ControllerTwin:
         if self._closing.is_set():
             return
         self._closing.set()
-        self._wake()
+        self._pty.wake()
         if self._thread is not None:
             self._thread.join(timeout=10)
             if self._thread.is_alive():
                 log.error("controller twin thread did not stop")
-        self._close_pty()
         self._remove_link()
         if self._link_dir is not None:
             self._link_dir.cleanup()
-        for fd in (self._wake_r, self._wake_w):
-            with contextlib.suppress(OSError):
-                os.close(fd)
+        self._pty.dispose()
 
     def __enter__(self) -> ControllerTwin:
         return self.start()
@@ -243,14 +234,14 @@ class ControllerTwin:
         """What a driver opens: the stable link when one is kept, else the pty's slave path."""
         if self._link is not None:
             return self._link
-        if self._pty_path is None:
+        if self._pty.path is None:
             raise RuntimeError("the twin is not started")
-        return self._pty_path
+        return self._pty.path
 
     @property
     def pty_path(self) -> str | None:
         """The current pty slave path (None while unplugged)."""
-        return self._pty_path
+        return self._pty.path
 
     @property
     def motion_log(self) -> list[MotionRecord]:
@@ -279,13 +270,13 @@ class ControllerTwin:
     def unplug(self) -> None:
         """Pull the cable now: the pty disappears."""
         self._unplug_requested.set()
-        self._wake()
+        self._pty.wake()
 
     def replug(self, timeout_s: float = 5.0) -> None:
         """Plug the cable back: a new pty; :attr:`port` (with a link) stays the same path."""
         self._replugged.clear()
         self._replug_requested.set()
-        self._wake()
+        self._pty.wake()
         if not self._replugged.wait(timeout_s):
             raise RuntimeError("the twin did not come back")
 
@@ -301,64 +292,47 @@ class ControllerTwin:
     # ---------------------------------------------------------------- pty
 
     def _open_pty(self) -> None:
-        master, slave = pty.openpty()
-        tty.setraw(slave)  # no echo or CR translation by the line discipline: the twin echoes itself
-        os.set_blocking(master, False)
-        self._master, self._slave = master, slave
-        self._pty_path = os.ttyname(slave)
+        self._pty.open()  # raw: the twin echoes itself
         if self.settings.link is not None:
             self._point_link()
         self._plugged.set()
-        log.debug("pty %s", self._pty_path)
+        log.debug("pty %s", self._pty.path)
 
     def _point_link(self) -> None:
-        assert self._pty_path is not None
+        assert self._pty.path is not None
         if self._link is None:
             self._link_dir = tempfile.TemporaryDirectory(prefix="crs-twin-")
             self._link = str(Path(self._link_dir.name) / "c500c")
         tmp = f"{self._link}.{os.getpid()}.tmp"
         if os.path.lexists(tmp):
             os.unlink(tmp)
-        os.symlink(self._pty_path, tmp)
+        os.symlink(self._pty.path, tmp)
         os.replace(tmp, self._link)
 
     def _remove_link(self) -> None:
         if self._link is not None and os.path.islink(self._link):
             os.unlink(self._link)
 
-    def _close_pty(self) -> None:
-        for fd in (self._master, self._slave):
-            if fd is not None:
-                with contextlib.suppress(OSError):
-                    os.close(fd)
-        self._master = self._slave = None
-        self._pty_path = None
-
-    def _wake(self) -> None:
-        with contextlib.suppress(OSError):
-            os.write(self._wake_w, b"x")
-
     def _do_unplug(self, replug_after_s: float | None) -> None:
         log.info("twin: cable pulled%s", "" if replug_after_s is None else f", back in {replug_after_s:g} s")
         self._plugged.clear()
-        self._close_pty()
+        self._pty.close()
         self._remove_link()
         self._line.clear()
         self._inbox.clear()
         self._replug_at = None if replug_after_s is None else time.monotonic() + replug_after_s
 
     def _do_replug(self) -> None:
-        if self._master is None:
+        if not self._pty.is_open:
             self._open_pty()
-            log.info("twin: back on %s", self._pty_path)
+            log.info("twin: back on %s", self._pty.path)
         self._replug_at = None
         self._replugged.set()
 
     # ---------------------------------------------------------------- I/O
 
     def _write(self, text: str) -> None:
-        master = self._master
-        if master is None:
+        if not self._pty.is_open:
             return
         data = text.encode("latin-1", errors="replace")
         if self.settings.line_baud is not None and data:
@@ -366,33 +340,7 @@ class ControllerTwin:
             now = time.monotonic()
             self._line_free_at = max(now, self._line_free_at) + len(data) * 10.0 / self.settings.line_baud
             time.sleep(self._line_free_at - now)
-        while data and not self._closing.is_set():
-            try:
-                written = os.write(master, data)
-                data = data[written:]
-            except BlockingIOError:
-                select.select([], [master], [], 0.05)
-            except OSError as exc:
-                log.debug("twin write: %s", exc)
-                return
-
-    def _wait_input(self, timeout_s: float | None) -> bytes | None:
-        """Bytes from the host, or None on timeout / wake-up."""
-        master = self._master
-        fds = [self._wake_r] if master is None else [master, self._wake_r]
-        readable, _, _ = select.select(fds, [], [], timeout_s)
-        if self._wake_r in readable:
-            os.read(self._wake_r, 1024)
-            return None
-        if master is not None and master in readable:
-            try:
-                return os.read(master, 4096)
-            except BlockingIOError:
-                return None
-            except OSError:  # no slave open (EIO): wait for one
-                time.sleep(0.01)
-                return None
-        return None
+        self._pty.write(data, self._closing)
 
     def _halt_keys(self) -> set[int]:
         return {CTRL_Z, CTRL_C} if self.settings.ctrl_c_stops else {CTRL_Z}
@@ -412,7 +360,7 @@ class ControllerTwin:
                 return False
             if self._scheduled is not None:
                 remaining = min(remaining, max(0.0, self._scheduled[0] - time.monotonic()))
-            data = self._wait_input(remaining)
+            data = self._pty.read(remaining)
             if data:
                 hit = [i for i, b in enumerate(data) if b in keys]
                 if hit:
@@ -420,7 +368,7 @@ class ControllerTwin:
                     self._halt(data[hit[0]])
                     return True
                 self._inbox += data
-            if self._master is None:
+            if not self._pty.is_open:
                 return False
         return False
 
@@ -459,11 +407,11 @@ class ControllerTwin:
             )
             if self._scheduled is not None:
                 timeout = max(0.0, min(timeout, self._scheduled[0] - time.monotonic()))
-            data = self._wait_input(timeout)
+            data = self._pty.read(timeout)
             self._fire_scheduled()
             if data:
                 self._inbox += data
-            while self._inbox and self._master is not None and not self._closing.is_set():
+            while self._inbox and self._pty.is_open and not self._closing.is_set():
                 byte = self._inbox.pop(0)
                 self._on_byte(byte)
 

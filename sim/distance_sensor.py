@@ -17,14 +17,9 @@ on its top plane and its z axis the plane's normal pointing down into the table.
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import math
-import os
-import pty
-import select
 import threading
-import tty
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -33,6 +28,7 @@ import numpy as np
 import numpy.typing as npt
 from pydantic import BaseModel, ConfigDict, Field
 
+from sim._pty import PtyPort
 from sim.world import World
 
 log = logging.getLogger(__name__)
@@ -137,12 +133,9 @@ class DistanceSensorTwin:
         self._lock = threading.Lock()
         self._faults: deque[tuple[str, str]] = deque()
         self._alarm = False
-        self._master: int | None = None
-        self._slave: int | None = None
-        self._pty_path: str | None = None
+        self._pty = PtyPort()
         self._thread: threading.Thread | None = None
         self._closing = threading.Event()
-        self._wake_r, self._wake_w = os.pipe()
         self._unplug_requested = threading.Event()
         self._unplugged = threading.Event()
         self._buffer = bytearray()
@@ -153,14 +146,10 @@ class DistanceSensorTwin:
     def start(self) -> DistanceSensorTwin:
         if self._thread is not None:
             return self
-        master, slave = pty.openpty()
-        tty.setraw(slave)
-        os.set_blocking(master, False)
-        self._master, self._slave = master, slave
-        self._pty_path = os.ttyname(slave)
-        self._thread = threading.Thread(target=self._serve, name=f"il-twin {self._pty_path}", daemon=True)
+        self._pty.open()
+        self._thread = threading.Thread(target=self._serve, name=f"il-twin {self._pty.path}", daemon=True)
         self._thread.start()
-        log.info("distance sensor twin on %s", self._pty_path)
+        log.info("distance sensor twin on %s", self._pty.path)
         return self
 
     def close(self) -> None:
@@ -168,13 +157,10 @@ class DistanceSensorTwin:
         if self._closing.is_set():
             return
         self._closing.set()
-        self._wake()
+        self._pty.wake()
         if self._thread is not None:
             self._thread.join(timeout=5)
-        self._close_pty()
-        for fd in (self._wake_r, self._wake_w):
-            with contextlib.suppress(OSError):
-                os.close(fd)
+        self._pty.dispose()
 
     def __enter__(self) -> DistanceSensorTwin:
         return self.start()
@@ -184,9 +170,9 @@ class DistanceSensorTwin:
 
     @property
     def port(self) -> str:
-        if self._pty_path is None:
+        if self._pty.path is None:
             raise RuntimeError("the distance sensor twin is not started (or was unplugged)")
-        return self._pty_path
+        return self._pty.path
 
     # ---------------------------------------------------------------- control from outside
 
@@ -206,11 +192,11 @@ class DistanceSensorTwin:
     def unplug(self, timeout_s: float = 5.0) -> None:
         """Pull the cable: the pty goes away (closed by the serving thread, which alone uses its fds)."""
         if self._thread is None or not self._thread.is_alive():
-            self._close_pty()
+            self._pty.close()
             return
         self._unplugged.clear()
         self._unplug_requested.set()
-        self._wake()
+        self._pty.wake()
         if not self._unplugged.wait(timeout_s):
             raise RuntimeError("the distance sensor twin did not unplug")
 
@@ -245,49 +231,15 @@ class DistanceSensorTwin:
 
     # ---------------------------------------------------------------- serving
 
-    def _close_pty(self) -> None:
-        for fd in (self._master, self._slave):
-            if fd is not None:
-                with contextlib.suppress(OSError):
-                    os.close(fd)
-        self._master = self._slave = None
-        self._pty_path = None
-
-    def _wake(self) -> None:
-        with contextlib.suppress(OSError):
-            os.write(self._wake_w, b"x")
-
-    def _write(self, data: bytes) -> None:
-        master = self._master
-        while data and master is not None and not self._closing.is_set():
-            try:
-                data = data[os.write(master, data) :]
-            except BlockingIOError:
-                select.select([], [master], [], 0.05)
-            except OSError:
-                return
-
     def _serve(self) -> None:
         while not self._closing.is_set():
             if self._unplug_requested.is_set():
                 self._unplug_requested.clear()
-                self._close_pty()
+                self._pty.close()
                 self._buffer.clear()
                 self._unplugged.set()
-            master = self._master
-            fds = [self._wake_r] if master is None else [master, self._wake_r]
-            readable, _, _ = select.select(fds, [], [], 0.2)
-            if self._wake_r in readable:
-                with contextlib.suppress(OSError):
-                    os.read(self._wake_r, 1024)
-            if master is None or master not in readable:
-                continue
-            try:
-                chunk = os.read(master, 4096)
-            except BlockingIOError:
-                continue
-            except OSError:
-                self._closing.wait(0.01)
+            chunk = self._pty.read(0.2)
+            if not chunk:
                 continue
             self._buffer += chunk
             while True:
@@ -312,11 +264,11 @@ class DistanceSensorTwin:
         else:
             reply = f"ER,{command},00"  # [M] an invalid command
         if fault is None or fault[0] == "error":
-            self._write(reply.encode("ascii") + b"\r\n")
+            self._pty.write(reply.encode("ascii") + b"\r\n", self._closing)
         elif fault[0] == "garble":
-            self._write(bytes((b ^ 0x5A) | 0x80 for b in reply.encode("ascii")) + b"\r\n")
+            self._pty.write(bytes((b ^ 0x5A) | 0x80 for b in reply.encode("ascii")) + b"\r\n", self._closing)
         elif fault[0] == "cut":
-            self._write(reply.encode("ascii")[: len(reply) // 2])
+            self._pty.write(reply.encode("ascii")[: len(reply) // 2], self._closing)
         # "silent": the reply is lost
 
 
