@@ -26,7 +26,7 @@ from station.calibration_session import calibration_setup, observations_from
 from station.config import StationDevices
 from station.kinematics import rot_x, rot_y, rot_z, transform
 from station.plans import CaptureResult
-from station.plans.calibration import LOOK_DOWN, CalibrationCell, lift_pose
+from station.plans.calibration import LOOK_DOWN, CalibrationCell
 from station.vision import MeasureParams
 
 FloatArray = npt.NDArray[np.float64]
@@ -113,7 +113,7 @@ def pointing_errors_um(
     """
     from station.calibration import compensated_joints
     from station.calibration_session import calibration_setup
-    from station.plans.calibration import quantised, split_move, square_on
+    from station.plans.calibration import quantised, square_on, travel
     from station.vision import MeasurementError, measure
 
     robot = devices.robot
@@ -136,9 +136,7 @@ def pointing_errors_um(
         here = tuple(robot.where().commanded_joints_deg)
         target = quantised(compensated_joints(kin, pose, current_deg=here))
         limit = cell.max_step_deg * 0.9
-        chain = [*split_move(here, lift_pose(here), limit)]
-        chain += split_move(chain[-1], lift_pose(target), limit)
-        chain += split_move(chain[-1], target, limit)
+        chain = travel(here, target, limit)
         previous = here
         for q in chain:
             robot.check_move(q, start_deg=previous)

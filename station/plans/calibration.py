@@ -183,10 +183,21 @@ def unwrap_near(q: npt.ArrayLike, seed: npt.ArrayLike, limits: FloatArray) -> tu
 
 def split_move(start: Sequence[float], end: Sequence[float], max_step_deg: float) -> list[tuple[float, ...]]:
     """Waypoints from ``start`` (excluded) to ``end`` (included), no joint moving more than ``max_step_deg``
-    between two of them."""
-    a, b = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
-    n = max(1, math.ceil(float(np.max(np.abs(b - a))) / max_step_deg - 1e-9))
-    return [quantised(a + (b - a) * (k / n)) for k in range(1, n + 1)]
+    between two of them, at the controller's resolution."""
+    from station.calibration import joint_steps  # scipy behind it: not at the plans' import
+
+    return [quantised(q) for q in joint_steps(start, end, max_step_deg=max_step_deg)]
+
+
+def travel(start: Sequence[float], end: Sequence[float], max_step_deg: float) -> list[tuple[float, ...]]:
+    """Waypoints from one configuration to another through the lift poses (up, across, down): the camera
+    stays high above every artifact between them."""
+    up_from, up_to = lift_pose(start), lift_pose(end)
+    return [
+        *split_move(start, up_from, max_step_deg),
+        *split_move(up_from, up_to, max_step_deg),
+        *split_move(up_to, end, max_step_deg),
+    ]
 
 
 def lift_pose(q: Sequence[float]) -> tuple[float, ...]:
@@ -311,10 +322,7 @@ class CalibrationPlan:
             elif same_branch:
                 moves += split_move(previous, c.joints_deg, step_limit)
             else:
-                up_from, up_to = lift_pose(previous), lift_pose(c.joints_deg)
-                moves += split_move(previous, up_from, step_limit)
-                moves += split_move(up_from, up_to, step_limit)
-                moves += split_move(up_to, c.joints_deg, step_limit)
+                moves += travel(previous, c.joints_deg, step_limit)
             actions: list[Any] = [SetSpeed(params.speed_pct)] if prev_config is None else []
             actions += [MoveJoints(q) for q in moves]
             if params.settle_s:
