@@ -21,7 +21,7 @@ it once saved with ``station calibrate SESSION --out FILE``).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -35,55 +35,15 @@ from station.calibration import (
     crossing_positions,
     identify,
 )
-from station.kinematics import Kinematics, transform
+from station.kinematics import Kinematics
 from station.plans import CaptureResult, PlanError
 
 if TYPE_CHECKING:
     from station.devices import Robot
     from station.plans.calibration import CalibrationCell, CalibrationParams
-    from station.vision import MeasureParams
 
 #: Capture kinds of a calibration session the identification uses ("align" frames are not).
 FIT_KINDS = {"pose": "pose", "inview": "inview", "return": "inview"}
-
-
-def calibration_cell_from_config(
-    config: Mapping[str, Any], measure_params: MeasureParams
-) -> CalibrationCell | None:
-    """The calibration plan's cell from a station configuration (a ``StationConfig`` dumped as JSON, or the
-    configuration snapshot a session recorded); ``None`` without a ``[calibration]`` section, a robot or
-    a distance sensor."""
-    from station.config import CalibrationConfig, SensorMount
-    from station.plans.calibration import CalibrationCell
-
-    robot = config.get("robot")
-    sensor = config.get("distance_sensor")
-    if not config.get("calibration") or not robot or not sensor:
-        return None
-    cal = CalibrationConfig.model_validate(config["calibration"])
-    mount = SensorMount.model_validate(sensor.get("mount") or {})
-    safety = robot.get("safety") or {}
-    offset = tuple(float(v) for v in safety.get("camera_offset_mm", (0.0, 0.0, 0.0)))
-    focal = cal.working_distance_mm / cal.pixel_mm
-    principal: tuple[float, float] | None = None
-    if measure_params.camera_matrix is not None:
-        focal = float(measure_params.camera_matrix[0][0])
-        principal = (float(measure_params.camera_matrix[0][2]), float(measure_params.camera_matrix[1][2]))
-    reference = robot.get("reference_joints_deg")
-    return CalibrationCell(
-        kinematics=Kinematics(tool=transform(np.eye(3), offset)),
-        artifacts_mm=tuple((float(x), float(y), float(z)) for x, y, z in cal.artifacts_mm),
-        artifact_turns_deg=tuple(cal.artifact_turns_deg or [0.0] * len(cal.artifacts_mm)),
-        artifact_normals=None
-        if cal.artifact_normals is None
-        else tuple((float(a), float(b), float(c)) for a, b, c in cal.artifact_normals),
-        working_distance_mm=cal.working_distance_mm,
-        focal_px=focal,
-        principal_px=principal,
-        sensor_mount=mount.matrix(),
-        max_step_deg=float(safety.get("max_step_deg", 30.0)),
-        reference_joints_deg=None if reference is None else tuple(float(a) for a in reference),
-    )
 
 
 def calibration_setup(cell: CalibrationCell, width: int, height: int) -> CalibrationSetup:
@@ -249,7 +209,6 @@ def analyse_calibration(
 
 __all__ = [
     "analyse_calibration",
-    "calibration_cell_from_config",
     "calibration_setup",
     "floor_estimate_um",
     "holdout_configurations",

@@ -1081,6 +1081,6 @@ def calibration_cell(devices: StationDevices | None, measure_params: MeasurePara
     ``None`` when it lacks ``[calibration]``, the robot or the distance sensor."""
     if devices is None or devices.distance_sensor is None:
         return None
-    from station.calibration_session import calibration_cell_from_config
+    from station.plans.calibration import calibration_cell_from_config
 
     return calibration_cell_from_config(devices.config.model_dump(mode="json"), measure_params)

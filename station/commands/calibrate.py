@@ -50,9 +50,9 @@ ANALYSIS_PARAMS = ("holdout_fraction", "seed")
 
 def run_calibrate(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     from station.calibration import CalibrationResult
-    from station.calibration_session import analyse_calibration, calibration_cell_from_config
+    from station.calibration_session import analyse_calibration
     from station.plans import parse_params as validate_params
-    from station.plans.calibration import CALIBRATION
+    from station.plans.calibration import CALIBRATION, calibration_cell_from_config
     from station.record import RecordError
     from station.resources import SessionOutcome, dumps
     from station.runner import RunnerState, stored_captures

@@ -27,9 +27,9 @@ session (``station calibrate SESSION``).
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -51,6 +51,9 @@ from station.plans import (
     Settle,
     Step,
 )
+
+if TYPE_CHECKING:
+    from station.vision import MeasureParams
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -91,6 +94,44 @@ class CalibrationCell:
             raise PlanError("the cell has no distance sensor mount")
         R, t = self.sensor_mount[:3, :3], self.sensor_mount[:3, 3]
         return float(R[2, 2] * z_mm + t[2])
+
+
+def calibration_cell_from_config(
+    config: Mapping[str, Any], measure_params: MeasureParams
+) -> CalibrationCell | None:
+    """The calibration plan's cell from a station configuration (a ``StationConfig`` dumped as JSON, or the
+    configuration snapshot a session recorded); ``None`` without a ``[calibration]`` section, a robot or
+    a distance sensor."""
+    from station.config import CalibrationConfig, SensorMount
+
+    robot = config.get("robot")
+    sensor = config.get("distance_sensor")
+    if not config.get("calibration") or not robot or not sensor:
+        return None
+    cal = CalibrationConfig.model_validate(config["calibration"])
+    mount = SensorMount.model_validate(sensor.get("mount") or {})
+    safety = robot.get("safety") or {}
+    offset = tuple(float(v) for v in safety.get("camera_offset_mm", (0.0, 0.0, 0.0)))
+    focal = cal.working_distance_mm / cal.pixel_mm
+    principal: tuple[float, float] | None = None
+    if measure_params.camera_matrix is not None:
+        focal = float(measure_params.camera_matrix[0][0])
+        principal = (float(measure_params.camera_matrix[0][2]), float(measure_params.camera_matrix[1][2]))
+    reference = robot.get("reference_joints_deg")
+    return CalibrationCell(
+        kinematics=Kinematics(tool=transform(np.eye(3), offset)),
+        artifacts_mm=tuple((float(x), float(y), float(z)) for x, y, z in cal.artifacts_mm),
+        artifact_turns_deg=tuple(cal.artifact_turns_deg or [0.0] * len(cal.artifacts_mm)),
+        artifact_normals=None
+        if cal.artifact_normals is None
+        else tuple((float(a), float(b), float(c)) for a, b, c in cal.artifact_normals),
+        working_distance_mm=cal.working_distance_mm,
+        focal_px=focal,
+        principal_px=principal,
+        sensor_mount=mount.matrix(),
+        max_step_deg=float(safety.get("max_step_deg", 30.0)),
+        reference_joints_deg=None if reference is None else tuple(float(a) for a in reference),
+    )
 
 
 class CalibrationParams(BaseModel):
