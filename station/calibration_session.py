@@ -144,9 +144,9 @@ def floor_estimate_um(
         return None
     a = crossing_positions([poses[c] for c in both], kinematics, setup.camera, setup.sensor_mount)
     b = crossing_positions([returns[c] for c in both], kinematics, setup.camera, setup.sensor_mount)
-    n = np.array([0.0, 0.0, 1.0])  # the artifacts lie level
+    n = np.array([setup.normal(poses[c].placement) for c in both])  # each artifact's own plane
     d = b - a
-    d -= np.outer(d @ n, n)
+    d -= np.sum(d * n, axis=1, keepdims=True) * n
     rms = float(np.sqrt(np.mean(np.sum(d * d, axis=1))))
     return math.sqrt(math.pi) / 2.0 * rms * 1000.0
 
