@@ -111,9 +111,8 @@ def pointing_errors_um(
     ``devices`` must be connected (robot, camera). None where the crossing is not measured (out of view
     or focus). The arm settles ``settle_s`` (wall time) before each capture.
     """
-    from station.calibration import compensated_joints
-    from station.calibration_session import calibration_setup
-    from station.plans.calibration import quantised, square_on, travel
+    from station.calibration_session import calibration_setup, move_camera
+    from station.plans.calibration import square_on
     from station.vision import MeasurementError, measure
 
     robot = devices.robot
@@ -133,16 +132,7 @@ def pointing_errors_um(
         pose = transform(
             square_on(up) @ LOOK_DOWN @ rot_z(math.radians(turn)), point + cell.working_distance_mm * up
         )
-        here = tuple(robot.where().commanded_joints_deg)
-        target = quantised(compensated_joints(kin, pose, current_deg=here))
-        limit = cell.max_step_deg * 0.9
-        chain = travel(here, target, limit)
-        previous = here
-        for q in chain:
-            robot.check_move(q, start_deg=previous)
-            previous = q
-        for q in chain:
-            robot.move_joints(q)
+        move_camera(robot, kin, pose, max_step_deg=cell.max_step_deg * 0.9, through_lift=True)
         time.sleep(settle_s)
         frame = devices.camera.grab()
         try:

@@ -223,21 +223,22 @@ def move_camera(
     camera_pose: npt.ArrayLike,
     *,
     max_step_deg: float,
+    through_lift: bool = False,
 ) -> list[tuple[float, ...]]:
     """A compensated move: the camera to ``camera_pose`` (4x4, the calibrated model's base frame, mm) by
-    inverse kinematics with the calibrated model, sent as joint moves within ``max_step_deg`` each.
+    inverse kinematics with the calibrated model, sent as joint moves within ``max_step_deg`` each:
+    straight in joint space, or with ``through_lift`` up, across and down through the lift poses (the
+    calibration plan's route between artifacts).
 
     The whole chain of waypoints is checked with ``check_move`` before the first is sent (a chain that
     fails validation moves nothing). Returns the waypoints sent (deg, at the controller's resolution).
     """
-    from station.calibration import compensated_steps
-    from station.plans.calibration import quantised
+    from station.calibration import compensated_joints
+    from station.plans.calibration import quantised, split_move, travel
 
     start = tuple(float(a) for a in robot.where().commanded_joints_deg)
-    steps = [
-        quantised(q)
-        for q in compensated_steps(calibrated, camera_pose, current_deg=start, max_step_deg=max_step_deg)
-    ]
+    target = quantised(compensated_joints(calibrated, camera_pose, current_deg=start))
+    steps = (travel if through_lift else split_move)(start, target, max_step_deg)
     previous = start
     for q in steps:
         robot.check_move(q, start_deg=previous)
@@ -245,3 +246,13 @@ def move_camera(
     for q in steps:
         robot.move_joints(q)
     return steps
+
+
+__all__ = [
+    "analyse_calibration",
+    "calibration_setup",
+    "floor_estimate_um",
+    "holdout_configurations",
+    "move_camera",
+    "observations_from",
+]
