@@ -130,12 +130,13 @@ Listener = Callable[[PromptEvent], None]
 class _Record:
     """A prompt and, once closed, its answer (shared by the broker and the prompt's handle)."""
 
-    __slots__ = ("answer", "prompt", "validate")
+    __slots__ = ("announced", "answer", "prompt", "validate")
 
     def __init__(self, prompt: Prompt, validate: Validator | None) -> None:
         self.prompt = prompt
         self.validate = validate
         self.answer: PromptAnswer | None = None
+        self.announced = False  # every listener has seen it open: now it is shown to pollers
 
 
 class PromptHandle:
@@ -234,10 +235,16 @@ class PromptBroker:
 
     # ------------------------------------------------------------------ answering
 
-    def current(self) -> Prompt | None:
-        """The open prompt, or None."""
+    def current(self, *, pending: bool = False) -> Prompt | None:
+        """The open prompt, or None.
+
+        A prompt shows here once every listener has seen it open (a front end that finds it can rely on
+        what the listeners did, e.g. the session's state saying it waits for the operator);
+        ``pending=True`` also gives one whose opening is still being delivered (to withdraw it).
+        """
         with self._cond:
-            return self._open.prompt if self._open is not None else None
+            record = self._open
+            return record.prompt if record is not None and (pending or record.announced) else None
 
     @property
     def revision(self) -> int:
@@ -248,8 +255,8 @@ class PromptBroker:
     def wait_for_prompt(self, timeout: float | None = None) -> Prompt | None:
         """Block this thread until a prompt is open and return it (None after ``timeout`` s)."""
         with self._cond:
-            self._cond.wait_for(lambda: self._open is not None, timeout)
-            return self._open.prompt if self._open is not None else None
+            self._cond.wait_for(lambda: self._open is not None and self._open.announced, timeout)
+            return self._open.prompt if self._open is not None and self._open.announced else None
 
     def confirm(
         self, prompt_id: str, readings: Mapping[str, float] | None = None, *, by: str = ""
@@ -398,6 +405,12 @@ class PromptBroker:
                         listener(event)
                     except Exception:  # a faulty front end must not break the asker or the others
                         log.exception("prompt listener %r failed on %s event", listener, event.kind)
+                if event.kind == "opened":
+                    with self._cond:
+                        record = self._open
+                        if record is not None and record.prompt.id == event.prompt.id:
+                            record.announced = True
+                            self._cond.notify_all()
         except BaseException:
             with self._cond:
                 self._dispatching = False

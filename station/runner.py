@@ -339,7 +339,7 @@ class SessionRunner:
             with self._lock:
                 self._enter_aborting()
         if devices is not None:
-            prompt = devices.broker.current()
+            prompt = devices.broker.current(pending=True)
             if prompt is not None:
                 with contextlib.suppress(PromptError):
                     devices.broker.cancel(prompt.id, reason=reason, by="runner")

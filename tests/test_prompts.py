@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import threading
+import time
 from collections.abc import Callable, Iterator, Mapping
 
 import pytest
@@ -322,3 +323,33 @@ def test_prompts_and_answers_convert_to_plain_data_for_the_api(broker: PromptBro
     assert data["prompt"]["fields"][0]["name"] == "x_in"
     assert data["readings"] == {"x_in": 0.0102}
     assert data["outcome"] == "confirmed"
+
+
+def test_a_poller_sees_a_prompt_only_after_every_listener_has_seen_it_open() -> None:
+    """What a listener does on 'opened' (the runner: the session now awaits the operator) is done before
+    any front end polling current() or wait_for_prompt() finds the prompt."""
+    broker = PromptBroker()
+    listener_done = threading.Event()
+    seen_early: list[object] = []
+
+    def slow_listener(event: PromptEvent) -> None:
+        if event.kind == "opened":
+            seen_early.append(broker.current())  # not shown yet, even to a listener
+            time.sleep(0.2)
+            listener_done.set()
+
+    broker.subscribe(slow_listener)
+    found: list[bool] = []
+
+    def poll() -> None:
+        prompt = broker.wait_for_prompt(timeout=5.0)
+        found.append(prompt is not None and listener_done.is_set())
+
+    poller = threading.Thread(target=poll)
+    poller.start()
+    handle = broker.ask("turn the micrometers")
+    poller.join(timeout=5.0)
+    assert found == [True]
+    assert seen_early == [None]
+    assert broker.current() == handle.prompt
+    assert broker.current(pending=True) == handle.prompt
