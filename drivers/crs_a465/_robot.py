@@ -74,6 +74,9 @@ from station.kinematics import Kinematics
 
 log = logging.getLogger(__name__)
 
+SHOWN_EXACTLY_DEG = 0.0005 + 1e-9
+"""A ``w0`` within this of a target shows the target itself (reported to 3 decimals)."""
+
 _HOME_PROGRESS = re.compile(r"^(?:Seeking|Homing) axis \d+\.\.\..*$")
 """``home``'s per-axis lines (``Seeking axis 1...OK; Homing axis 1...Ok, seek distance of 1520.``) [F]."""
 _SERVER_LINE = re.compile(r"^/sbin/\S+: ")
@@ -592,6 +595,11 @@ class CrsA465:
             if at_target and w2 is not None:
                 still = tracker.see_actual(now, w2.pulses)
                 if (done or still) and not tracker.gross(w2.joints_deg):
+                    if abs(worst_axis(w0.joints_deg, target)[1]) > SHOWN_EXACTLY_DEG:
+                        # that w0 was read while the set-point was still closing in on the target
+                        # (within the resolution, not there): the next relative move starts from the
+                        # commanded position, so read the one the motion ended at
+                        w0 = self._position(cmd.W0, motion_poll=True)
                     self._fresh = (now, w0, w2)
                     return w0, w2
             if tracker.stalled(now):
@@ -710,7 +718,7 @@ class CrsA465:
 
     def _finish(self, reached: tuple[float, ...], target: tuple[float, ...]) -> None:
         axis, diff = worst_axis(reached, target)
-        if abs(diff) > self.motion.resolution_deg + 1e-9:  # exactly one resolution step is arrived
+        if abs(diff) > self.motion.resolution_deg:
             raise ArrivalError(
                 f"after the move the controller commands joint {axis} at {reached[axis - 1]:.3f} deg,"
                 f" not the target {target[axis - 1]:.3f} deg; read the position (where) before going on"
