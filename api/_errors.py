@@ -15,7 +15,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from api._service import ConflictError, ImportArchiveError, NotAvailableError
+from api._service import ConflictError, ImportArchiveError, NotAvailableError, WorkerError
 from station.config import ConfigurationError
 from station.imageio import ImageFileError
 from station.plans import PlanError
@@ -35,6 +35,7 @@ STATUS_OF: tuple[tuple[type[Exception], int, str], ...] = (
     (ImportArchiveError, 422, "bad_archive"),
     (PreflightError, 422, "preflight_failed"),
     (ConflictError, 409, "conflict"),
+    (WorkerError, 503, "worker_unavailable"),
     (NotAvailableError, 409, "not_available"),
     (SessionError, 409, "session_error"),
     (UnknownPromptError, 409, "prompt_not_open"),
@@ -58,6 +59,7 @@ TITLES = {
     415: "Unsupported media type",
     422: "Unprocessable content",
     500: "Internal server error",
+    503: "Service unavailable",
 }
 
 

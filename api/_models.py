@@ -155,3 +155,5 @@ class StationModel(BaseModel):
     session: dict[str, Any] | None
     lock: dict[str, Any] | None
     plans: list[str]
+    worker: dict[str, Any] | None = None
+    """The station's worker process (``alive``): it owns the devices and runs the sessions."""

@@ -1,25 +1,25 @@
-"""The station as a service: one object that owns the record, the devices and the running session.
+"""The station as a service: one object that owns the record and the station's worker process.
 
 No HTTP here: the routers translate requests into calls of :class:`StationService` and its domain
 exceptions into problem details (``api/_errors.py``). Everything it does is the runner's, the record's
-and the prompt broker's own work (``station/``); it only holds the one runner of this process, builds
-its parameters the way ``station run`` does, and fans the runner's events out to streaming clients.
+and the prompt broker's own work (``station/``), and the devices and the session runner live in a
+process of their own (:mod:`station.worker`): the service's clients cost this process's interpreter,
+never the runner's. This process reads the record and mirrors what the worker reports (its events, the
+runner's state and progress, the open prompt); it fans the events out to streaming clients.
 
-Devices are built once (unconnected) when the service starts; the runner connects and closes them
-per session. While a session runs, the station's description comes from a cached snapshot: nothing
-here calls a robot method then.
+The worker builds the devices once (unconnected) when the service starts; the runner connects and
+closes them per session. The station's description comes from the worker's report and the events:
+nothing here calls a device.
 
-Reads are cheap while a session runs (clients poll; the runner shares the process and its GIL): the
-running session's row and the session list come from a cache that every ``state`` event of the runner
-invalidates (a row changes only with its state, and the list at most a second old for sessions another
-process imports), the station's description from a snapshot at most a second old, and the running
-session's events from an in-memory buffer of the events the runner reported (the record is read only
-for what the buffer does not hold).
+Reads are cheap while a session runs (clients poll): the running session's row and the session list
+come from a cache that every ``state`` event invalidates (a row changes only with its state, and the
+list at most a second old for sessions another process imports), the station's description from a
+snapshot at most a second old, and the running session's events from an in-memory buffer of the
+events the worker reported (the record is read only for what the buffer does not hold).
 """
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import io
 import logging
@@ -33,16 +33,9 @@ from pathlib import Path
 from typing import Any
 
 from station.batch import FileResult
-from station.config import (
-    ConfigurationError,
-    StationConfig,
-    StationDevices,
-    load_config,
-    open_sim_station,
-    open_station,
-)
+from station.config import ConfigurationError, StationConfig, load_config
 from station.imageio import ImageFileError, ImageLimits, decode_image
-from station.plans import PLAN_NAMES, PlanError, get_plan, parse_params
+from station.plans import PLAN_NAMES, PlanError
 from station.prompts import Prompt, PromptAnswer
 from station.record import (
     EventRow,
@@ -54,18 +47,17 @@ from station.record import (
     station_lock,
 )
 from station.resources import SessionOutcome
-from station.runner import (
-    ACTIVE_STATES,
-    FINAL_STATES,
-    PreflightError,
-    Progress,
-    RunnerState,
-    SessionError,
-    SessionRunner,
-    reconcile,
-)
-from station.session import open_record, save_scale_calibration, session_measure_params
+from station.runner import ACTIVE_STATES, FINAL_STATES, Progress, RunnerState, reconcile
+from station.session import open_record, session_measure_params
 from station.vision import MeasurementError, MeasureParams, measure
+from station.worker import (
+    ConflictError,
+    NotAvailableError,
+    RunnerStatus,
+    StationWorker,
+    WorkerError,
+    WorkerSpec,
+)
 
 log = logging.getLogger(__name__)
 
@@ -75,14 +67,6 @@ EVENT_BUFFER = 4096
 """The running session's latest events kept in memory for its event streams."""
 
 ACTIONS = ("pause", "resume", "stop", "abort")
-
-
-class ConflictError(SessionError):
-    """The request does not fit the session's or the station's state (HTTP 409)."""
-
-
-class NotAvailableError(SessionError):
-    """The station has no such device or feature in this configuration (HTTP 409)."""
 
 
 @dataclass
@@ -109,36 +93,52 @@ class SessionView:
 
 
 class StationService:
-    """The record, the station's devices and at most one running session of this process."""
+    """The record, and the station's worker process: its devices and at most one running session."""
 
     def __init__(self, settings: ServiceSettings) -> None:
         self.settings = settings
         self.config: StationConfig | None = load_config(settings.config) if settings.config else None
         self.record: Record = open_record(settings.data, settings.database, self.config)
-        self.devices: StationDevices | None = None
-        try:
-            if settings.sim:
-                self.devices = open_sim_station(operator=not settings.manual_prompts, **settings.sim_options)
-            elif self.config is not None:
-                self.devices = open_station(self.config)
-        except BaseException:
-            self.record.close()
-            raise
         self._lock = threading.RLock()
-        self._runner: SessionRunner | None = None
-        self._thread: threading.Thread | None = None
         self._listeners: list[Callable[[EventRow], None]] = []
         self._closed = False
-        self._identities: dict[str, Any] = self.devices.identities() if self.devices is not None else {}
         # the read caches (see the module's docstring): ``_generation`` counts the runner's state changes,
         # session creations, imports and actions; a cached read is good while it is unchanged
         self._generation = 0
         self._row_cache: tuple[int, SessionRow] | None = None
         self._list_cache: tuple[int, float, list[SessionRow]] | None = None
         self._station_cache: tuple[tuple[Any, ...], float, dict[str, Any]] | None = None
-        self._config_snapshot: dict[str, Any] | None = None
         self._recent: deque[EventRow] = deque(maxlen=EVENT_BUFFER)
         self.interrupted_at_start = self._reconcile()
+        try:
+            self.worker = StationWorker(
+                WorkerSpec(
+                    sim=settings.sim,
+                    manual_prompts=settings.manual_prompts,
+                    config=settings.config,
+                    data=self.record.data_dir,
+                    database=settings.database,
+                    sim_options=dict(settings.sim_options),
+                    log_level=min(logging.INFO, logging.getLogger().getEffectiveLevel()),
+                ),
+                on_event=self._on_event,
+                on_exit=self._on_worker_exit,
+            )
+        except BaseException:
+            self.record.close()
+            raise
+        self._identities: dict[str, Any] = dict(self.worker.info.identities)
+
+    @property
+    def has_station(self) -> bool:
+        """Whether the service drives a station (``--sim`` or ``--config``), not only the record."""
+        return bool(self.worker.info.devices)
+
+    def in_worker(self, fn: Callable[..., Any], *args: Any) -> Any:
+        """``fn(host, *args)`` in the station's worker process, its value returned here (``fn`` and the
+        arguments are pickled: a module-level function). For tests and benchmarks: a simulated
+        station's truth is ``host.devices.truth``."""
+        return self.worker.call("call", fn, args)
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -152,36 +152,29 @@ class StationService:
         except SessionLockError:
             return []
 
+    def _on_worker_exit(self) -> None:
+        """The worker died (not a shutdown): its session, left active, shows as interrupted."""
+        marked = self._reconcile()
+        if marked:
+            log.error("session(s) %s interrupted: the station worker process ended", ", ".join(marked))
+        self._generation += 1
+
     def close(self, *, timeout_s: float = 30.0) -> None:
         """Shut down (idempotent): a running session is aborted (the robot stopped through its latched
         ``stop()``, the open prompt cancelled), then recorded as ``interrupted`` so that it can be resumed;
-        the devices are closed."""
+        the devices are closed (all in the worker, which then exits)."""
         with self._lock:
             if self._closed:
                 return
             self._closed = True
-        runner, thread = self._runner, self._thread
-        if runner is not None and thread is not None and thread.is_alive():
-            sid = runner.session_id
-            log.warning("shutting down: session %s is interrupted (the robot is stopped)", sid)
-            runner.abort("the service shut down")
-            thread.join(timeout_s)
-            if sid is not None and not thread.is_alive():
-                with contextlib.suppress(RecordError):
-                    self.record.set_state(
-                        sid, RunnerState.INTERRUPTED, error="the service shut down during the session"
-                    )
-                    self.record.add_event(
-                        sid, "state", {"state": str(RunnerState.INTERRUPTED), "was": str(runner.state)}
-                    )
-        if self.devices is not None:
-            self.devices.close_owned()
+        self.worker.close(timeout_s)
         self.record.close()
 
     # ------------------------------------------------------------------ events
 
     def subscribe(self, listener: Callable[[EventRow], None]) -> Callable[[], None]:
-        """Call ``listener(event)`` for every event of this process's sessions (from the runner's thread)."""
+        """Call ``listener(event)`` for every event of the worker's sessions (from the worker handle's
+        reader thread)."""
         with self._lock:
             self._listeners.append(listener)
 
@@ -193,7 +186,7 @@ class StationService:
         return unsubscribe
 
     def _on_event(self, event: EventRow) -> None:
-        # the runner's thread, under the runner's lock: only quick, non-blocking work here
+        # the worker handle's reader thread: only quick, non-blocking work here
         if event.type == "connected":
             self._identities = dict(event.data.get("devices", {}))
         elif event.type == "state":
@@ -222,10 +215,10 @@ class StationService:
         return self.record.events(session_id, after_seq=after_seq, limit=limit)
 
     def buffered_events(self, session_id: str, after_seq: int, *, limit: int = 500) -> list[EventRow] | None:
-        """The events with ``seq > after_seq`` from the in-memory buffer of this process's latest session,
+        """The events with ``seq > after_seq`` from the in-memory buffer of the worker's latest session,
         or None when the buffer cannot tell (another session, or events older than the buffer's first).
         No database read: the event streams call this on the event loop."""
-        # tuple() copies the deque in one step under the GIL (the runner's thread appends meanwhile)
+        # tuple() copies the deque in one step under the GIL (the reader thread appends meanwhile)
         snapshot = tuple(self._recent)
         if not snapshot or snapshot[0].session_id != session_id:
             return None
@@ -238,24 +231,27 @@ class StationService:
         return out
 
     def session_ended(self, session_id: str) -> bool | None:
-        """Whether this process's runner of ``session_id`` has ended (None: not this process's session)."""
-        runner = self._runner
-        if runner is None or runner.session_id != session_id:
+        """Whether the worker's run of ``session_id`` has ended (None: not the worker's latest session)."""
+        status = self.worker.status
+        if status is None or status.session_id != session_id:
             return None
-        return runner.state in FINAL_STATES
+        return status.state in FINAL_STATES or not self.worker.alive
 
     # ------------------------------------------------------------------ the station
 
     @property
-    def running(self) -> SessionRunner | None:
-        runner = self._runner
-        return runner if runner is not None and runner.state not in FINAL_STATES else None
+    def running(self) -> RunnerStatus | None:
+        """The worker's session while it has not ended (as of its latest event)."""
+        status = self.worker.status
+        if status is None or status.state in FINAL_STATES or not self.worker.alive:
+            return None
+        return status
 
     def station(self) -> dict[str, Any]:
         """Configuration (secrets redacted), each device's identity and state; never touches a device.
         At most a second old (the station lock's holder, read from its file)."""
         runner = self.running
-        key = (id(runner), runner.state if runner is not None else None, id(self._identities))
+        key = (runner.session_id if runner else None, runner.state if runner else None, id(self._identities))
         cached = self._station_cache
         now = time.monotonic()
         if cached is not None and cached[0] == key and now - cached[1] < CACHE_MAX_AGE_S:
@@ -264,36 +260,28 @@ class StationService:
         self._station_cache = (key, now, doc)
         return doc
 
-    def _station(self, runner: SessionRunner | None) -> dict[str, Any]:
-        config = self.devices.config if self.devices is not None else self.config
-        if self._config_snapshot is None and config is not None:
-            self._config_snapshot = config.snapshot()
+    def _station(self, runner: RunnerStatus | None) -> dict[str, Any]:
+        info = self.worker.info
         busy = runner is not None
-        devices: dict[str, Any] = {}
-        for name in ("robot", "camera", "table", "distance_sensor"):
-            present = self.devices is not None and getattr(self.devices, name) is not None
-            if not present:
-                continue
-            devices[name] = {
-                "identity": self._identities.get(name, {}),
-                "state": "in_session" if busy else "idle",
-            }
+        devices: dict[str, Any] = {
+            name: {"identity": self._identities.get(name, {}), "state": "in_session" if busy else "idle"}
+            for name in info.devices
+        }
         holder = lock_holder(self.record.data_dir)
         return {
-            "name": config.name if config is not None else "offline",
+            "name": info.name or "offline",
             "sim": self.settings.sim,
             "manual_prompts": self.settings.manual_prompts,
-            "config": self._config_snapshot,
+            "config": info.config_snapshot,
             "devices": devices,
             "data_dir": str(self.record.data_dir),
             "record": self.record.url,
             "session": (
-                {"id": runner.session_id, "kind": runner.plan.name, "state": str(runner.state)}
-                if runner
-                else None
+                {"id": runner.session_id, "kind": runner.kind, "state": str(runner.state)} if runner else None
             ),
             "lock": holder,
             "plans": list(PLAN_NAMES),
+            "worker": {"alive": self.worker.alive},
         }
 
     # ------------------------------------------------------------------ measurement
@@ -329,24 +317,9 @@ class StationService:
         a session owns the camera."""
         from api._overlay import overlay_png
 
-        with self._lock:
-            if self.running is not None:
-                raise ConflictError(
-                    "a session owns the camera: its latest capture is at /api/v1/sessions/{id}/latest.png"
-                )
-            if self.devices is None:
-                raise NotAvailableError("this service has no station (start it with --sim or --config)")
-            holder = lock_holder(self.record.data_dir)
-            if holder is not None:
-                raise SessionLockError(str(self.record.data_dir / "station.lock"), holder)
-            camera = self.devices.camera
-            camera.connect()
-            try:
-                frame = camera.grab()
-            finally:
-                camera.close()
-        result = self._measure_array(frame.image) if overlay else None
-        return overlay_png(frame.image, result)
+        image = self.worker.call("grab", timeout_s=60)
+        result = self._measure_array(image) if overlay else None
+        return overlay_png(image, result)
 
     def _measure_array(self, image: Any) -> dict[str, Any]:
         mp, _ = session_measure_params(self.record, "repeatability", {}, self.config, {})
@@ -376,109 +349,34 @@ class StationService:
     def create_session(
         self, kind: str, params: Mapping[str, Any], assignments: Mapping[str, Any] | None = None
     ) -> SessionView:
-        """Create and start a session in a thread; ConflictError while another one runs."""
+        """Create and start a session in the worker; it answers once pre-flight has passed
+        (PreflightError: nothing moved). ConflictError while another one runs."""
         if kind not in PLAN_NAMES:
             raise PlanError(f"unknown session kind {kind!r}; known: {', '.join(PLAN_NAMES)}")
-        plan = get_plan(kind)
-        plan_params = parse_params(plan, dict(params))
-        if plan.needs and self.devices is None:
-            raise NotAvailableError(
-                f"a {kind} session drives hardware, and this service has no station: start it with --sim "
-                "or --config FILE"
-            )
-        assignments = measurement_names(assignments or {})
-        measure_params, cal_doc = session_measure_params(
-            self.record, kind, dict(params), self.config, assignments
-        )
-        return self._start(
-            SessionRunner(
-                self.record,
-                plan,
-                plan_params,
-                devices=self.devices if plan.needs else None,
-                measure_params=measure_params,
-                scale_calibration=cal_doc,
-                station=self._station_name(),
-                jobs=1,
-            )
-        )
+        names = measurement_names(assignments or {})
+        self._check_open()
+        sid = self.worker.call("create", kind, dict(params), names)
+        self._generation += 1
+        return self.get_session(sid)
 
-    def _station_name(self) -> str:
-        if self.devices is not None:
-            return self.devices.config.name
-        return self.config.name if self.config is not None else "default"
-
-    def _start(self, runner: SessionRunner) -> SessionView:
-        with self._lock:
-            if self._closed:
-                raise ConflictError("the service is shutting down")
-            current = self.running
-            if current is not None:
-                raise ConflictError(
-                    f"session {current.session_id} ({current.plan.name}) is {current.state}: one session "
-                    "at a time; wait for it to end, or stop or abort it first"
-                )
-            holder = lock_holder(self.record.data_dir)
-            if holder is not None:
-                raise SessionLockError(str(self.record.data_dir / "station.lock"), holder)
-            runner.subscribe(self._on_event)
-            checked = threading.Event()
-            problems: list[str] = []
-
-            def on_event(e: EventRow) -> None:
-                if e.type == "preflight":
-                    problems.extend(str(p) for p in e.data.get("problems", []))
-                    checked.set()
-                elif e.type == "state" and e.data.get("state") in FINAL_STATES:
-                    checked.set()
-
-            unsubscribe = runner.subscribe(on_event)
-            runner.create()
-            self._runner = runner
-            self._generation += 1
-            thread = threading.Thread(target=self._run, args=(runner,), name="service-session", daemon=True)
-            self._thread = thread
-            thread.start()
-        # the answer waits for pre-flight (devices connected, every motion checked; nothing moved yet), so
-        # that out-of-limit targets are refused here, and shows the session under way
-        while not checked.wait(0.05) and thread.is_alive():
-            pass
-        unsubscribe()
-        if problems:
-            thread.join()
-            raise PreflightError(problems)
-        assert runner.session_id is not None
-        return SessionView(self.record.get_session(runner.session_id), runner.progress())
-
-    def _run(self, runner: SessionRunner) -> None:
-        try:
-            runner.run()
-        except SessionLockError as exc:
-            log.error("session %s could not start: %s", runner.session_id, exc)
-            if runner.session_id is not None:
-                self.record.set_state(runner.session_id, RunnerState.FAILED, error=str(exc))
-            return
-        except Exception:
-            log.exception("session %s ended with an error", runner.session_id)
-            return
-        if runner.session_id is not None:
-            with contextlib.suppress(RecordError, OSError, ValueError):
-                save_scale_calibration(self.record, self.record.get_session(runner.session_id))
+    def _check_open(self) -> None:
+        if self._closed:
+            raise ConflictError("the service is shutting down")
 
     def wait(self, timeout_s: float | None = None) -> bool:
-        """Wait for this process's session thread to end (tests, shutdown); True when it has."""
-        thread = self._thread
-        if thread is None:
+        """Wait for the worker's session thread to end (tests, shutdown); True when it has."""
+        try:
+            done: bool = self.worker.call("wait", timeout_s)
+        except WorkerError:
             return True
-        thread.join(timeout_s)
-        return not thread.is_alive()
+        return done
 
     def list_sessions(self, *, limit: int, offset: int) -> tuple[list[SessionView], int]:
         rows = self._session_rows()
         return [self._view(r) for r in rows[offset : offset + limit]], len(rows)
 
     def _session_rows(self) -> list[SessionRow]:
-        """The record's sessions; while this process runs one, from a cache that its state changes
+        """The record's sessions; while the worker runs one, from a cache that its state changes
         invalidate (and at most a second old: another process may import a session meanwhile)."""
         if self.running is None:
             self._list_cache = None
@@ -506,40 +404,42 @@ class StationService:
         if cached is not None and cached[0] == generation and cached[1].id == session_id:
             return cached[1]
         row = self.record.get_session(session_id)
-        if self._generation == generation and self.running is runner:
+        now_running = self.running
+        if (
+            self._generation == generation
+            and now_running is not None
+            and now_running.session_id == session_id
+        ):
             self._row_cache = (generation, row)
         return row
 
     def _view(self, row: SessionRow) -> SessionView:
-        runner = self._runner
-        if runner is not None and runner.session_id == row.id:
-            state = runner.state
-            if state not in FINAL_STATES and row.state != state:
+        status = self.worker.status
+        if status is not None and status.session_id == row.id:
+            state = status.state
+            if state not in FINAL_STATES and row.state != state and self.worker.alive:
                 # the runner's state is set (in memory, under its lock) before the record's: a client that
                 # sees the prompt it raised finds the session awaiting the operator; a final state comes
                 # from the record, with its error
                 row = dataclasses.replace(row, state=str(state))
-            return SessionView(row, runner.progress())
+            return SessionView(row, status.progress)
         done = (
             len([s for s in self.record.steps(row.id) if s.state == "done"])
             if row.state in ACTIVE_STATES
             else 0
         )
-        return SessionView(row, Progress(done, 0, None)) if done else SessionView(row, Progress(0, 0, None))
+        return SessionView(row, Progress(done, 0, None))
 
     def act(self, session_id: str, action: str) -> SessionView:
         """pause, resume (also continues an interrupted, stopped, failed or aborted session), stop, abort."""
         if action not in ACTIONS:
             raise PlanError(f"unknown action {action!r}; one of {', '.join(ACTIONS)}")
         row = self.record.get_session(session_id)
-        runner = self._runner
-        if runner is not None and runner.session_id == row.id and runner.state not in FINAL_STATES:
-            try:
-                getattr(runner, action)()
-            except SessionError as exc:
-                raise ConflictError(str(exc)) from exc
-            finally:
-                self._generation += 1
+        try:
+            handled = self.worker.call("act", row.id, action)
+        finally:
+            self._generation += 1
+        if handled:
             return self.get_session(row.id)
         if action == "resume" and row.state in (
             RunnerState.INTERRUPTED,
@@ -547,7 +447,10 @@ class StationService:
             RunnerState.FAILED,
             RunnerState.ABORTED,
         ):
-            return self._resume(row)
+            self._check_open()
+            sid = self.worker.call("resume", row.id)
+            self._generation += 1
+            return self.get_session(sid)
         if row.state in ACTIVE_STATES:
             raise ConflictError(
                 f"session {row.id} is {row.state} in another process (the station lock's holder); "
@@ -555,47 +458,27 @@ class StationService:
             )
         raise ConflictError(f"cannot {action} session {row.id}: it is {row.state}")
 
-    def _resume(self, row: SessionRow) -> SessionView:
-        plan = get_plan(row.kind)
-        if plan.needs and self.devices is None:
-            raise NotAvailableError(
-                f"session {row.id} drives hardware; start the service with --sim or --config"
-            )
-        return self._start(
-            SessionRunner(
-                self.record,
-                plan,
-                parse_params(plan, dict(row.params.get("plan", {}))),
-                devices=self.devices if plan.needs else None,
-                measure_params=MeasureParams.model_validate(row.params.get("measure", {})),
-                scale_calibration=row.params.get("scale_calibration"),
-                resume_session=row,
-                station=self._station_name(),
-            )
-        )
-
     # ------------------------------------------------------------------ operator prompts
 
-    def _broker_or_none(self) -> Any:
-        return self.devices.broker if self.devices is not None else None
-
     def prompt(self) -> Prompt | None:
-        broker = self._broker_or_none()
-        return broker.current() if broker is not None else None
+        """The open operator prompt, as the worker last reported it (no call to the worker)."""
+        return self.worker.prompt if self.has_station else None
 
     def confirm(self, prompt_id: str, readings: Mapping[str, float] | None, *, by: str) -> PromptAnswer:
-        broker = self._broker_or_none()
-        if broker is None:
-            raise NotAvailableError("this service has no station, so no operator prompts")
-        answer: PromptAnswer = broker.confirm(prompt_id, readings, by=by)
+        answer: PromptAnswer = self.worker.call("confirm", prompt_id, readings, by)
+        self._answered(prompt_id)
         return answer
 
     def cancel(self, prompt_id: str, *, reason: str, by: str) -> PromptAnswer:
-        broker = self._broker_or_none()
-        if broker is None:
-            raise NotAvailableError("this service has no station, so no operator prompts")
-        answer: PromptAnswer = broker.cancel(prompt_id, reason=reason, by=by)
+        answer: PromptAnswer = self.worker.call("cancel", prompt_id, reason, by)
+        self._answered(prompt_id)
         return answer
+
+    def _answered(self, prompt_id: str) -> None:
+        """The prompt is closed: stop showing it now (the worker's report of it follows)."""
+        shown = self.worker.prompt
+        if shown is not None and shown.id == prompt_id:
+            self.worker.prompt = None
 
     # ------------------------------------------------------------------ results, reports, export
 
@@ -685,4 +568,5 @@ __all__ = [
     "ServiceSettings",
     "SessionView",
     "StationService",
+    "WorkerError",
 ]

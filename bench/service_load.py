@@ -9,7 +9,8 @@ and reconnect with Last-Event-ID. It stops when the session has ended or ``max_s
 repeatability session on the simulated station, ``seconds`` of clients split into ``rounds`` windows
 alternating with windows as long without clients; prints requests/s, p50/p99 latency, errors, and the
 runner's cycle period and per-cycle software overhead over the quiet and over the loaded windows. The
-clients run in a process of their own (the service's process holds the service and the runner only).
+clients run in a process of their own, as browsers do; the service runs its session in its worker
+process (``station.worker``), as ``station serve`` does.
 
 The overhead is ``bench.sessions_bench``'s (``make bench``'s station figure): a cycle's period on the
 runner's thread (one step's start to the next's) less the arm's motion time for the cycle's moves (the
@@ -181,9 +182,10 @@ def load(
 class CycleMeter:
     """Times a simulated station's repeatability cycles the way ``bench.sessions_bench`` does.
 
-    ``attach(service)`` wraps the sim camera's ``grab`` (timed) and subscribes to the service's events;
-    :meth:`overhead` then splits each cycle of a session into motion, settle, camera and software. The
-    listener runs on the runner's thread: it only notes a time and the twin's last move (no copying).
+    Built in the station's worker process (:func:`install_meter`, through ``StationService.in_worker``):
+    it wraps the sim camera's ``grab`` (timed) and listens to the runner's events there; :meth:`overhead`
+    then splits each cycle of a session into motion, settle, camera and software. The listener runs on
+    the runner's thread: it only notes a time and the twin's last move (no copying).
     """
 
     def __init__(self, devices: Any, speed_pct: float, settle_s: float) -> None:
@@ -255,6 +257,23 @@ class CycleMeter:
         }
 
 
+_METER: CycleMeter | None = None
+
+
+def install_meter(host: Any, speed_pct: float, settle_s: float) -> None:
+    """In the station's worker: time its cycles from now on."""
+    global _METER
+    _METER = CycleMeter(host.devices, speed_pct, settle_s)
+    host.subscribe(_METER.on_event)
+
+
+def meter_overhead(host: Any, session_id: str, windows: list[tuple[float, float]] | None) -> Any:
+    """In the station's worker: :meth:`CycleMeter.overhead` of the installed meter."""
+    if _METER is None:
+        raise RuntimeError("no cycle meter installed in this worker")
+    return _METER.overhead(session_id, windows)
+
+
 def main() -> None:
     import uvicorn
 
@@ -281,8 +300,10 @@ def main() -> None:
         service = StationService(
             ServiceSettings(sim=True, data=Path(tmp), sim_options={"seed": 0, "time_scale": args.time_scale})
         )
-        meter = CycleMeter(service.devices, speed_pct, settle_s)
-        service.subscribe(meter.on_event)
+        # the meter's hooks by their importable name (this file may run as __main__)
+        from bench import service_load as hooks
+
+        service.in_worker(hooks.install_meter, speed_pct, settle_s)
         app = create_app(service, Access(token, True))
         server = uvicorn.Server(
             uvicorn.Config(
@@ -317,8 +338,8 @@ def main() -> None:
         total = LoadStats()
         try:
             sid = service.create_session("repeatability", params).row.id
-            # the clients run in a process of their own, as the operator's browsers and scripts do: in
-            # this one, their own work would compete with the runner for the GIL and count as the stall
+            # the clients run in a process of their own, as the operator's browsers and scripts do (the
+            # runner runs in the service's worker process, the service's HTTP side in this one)
             with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
                 pool.submit(time.sleep, 0).result()  # the process is up before the first window
                 for _ in range(args.rounds):
@@ -340,11 +361,12 @@ def main() -> None:
             with contextlib.suppress(Exception):
                 service.act(sid, "abort")
             service.wait()
-            quiet_over = meter.overhead(sid, quiet_windows)
-            loaded_over = meter.overhead(sid, loaded_windows)
+            quiet_over = service.in_worker(hooks.meter_overhead, sid, quiet_windows)
+            loaded_over = service.in_worker(hooks.meter_overhead, sid, loaded_windows)
         finally:
             server.should_exit = True
             thread.join(30)
+            service.close()
     if ended:
         raise SystemExit("the session ended before the run did: give more --cycles")
     out = {

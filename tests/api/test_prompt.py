@@ -8,6 +8,7 @@ from typing import Any
 
 import httpx
 
+from station.worker import SessionHost
 from tests.api.conftest import ServeFactory, wait_final
 
 # three positions (um, table axes): a small same-direction validation
@@ -27,9 +28,20 @@ def next_prompt(c: httpx.Client, seen: set[str]) -> dict[str, Any] | None:
         time.sleep(0.02)
 
 
+def table_readings_mm(host: SessionHost) -> tuple[float, float]:
+    """The simulated world's micrometer readings (in the station's worker process)."""
+    x_mm, y_mm = host.devices.truth.world.table_readings_mm()
+    return float(x_mm), float(y_mm)
+
+
+def readings_followed(host: SessionHost) -> int:
+    """How many confirmed readings the sim's listener moved the world's micrometers to."""
+    followed: int = host.devices.truth.follower.followed
+    return followed
+
+
 def test_a_person_answers_every_prompt_and_the_artifact_moves(make_served: ServeFactory) -> None:
     served = make_served(manual=True)
-    truth = served.service.devices.truth  # type: ignore[union-attr]
     with served.client() as c:
         assert c.get("/api/v1/prompt").status_code == 204
         sid = c.post("/api/v1/sessions", json=VALIDATION).json()["id"]
@@ -50,7 +62,7 @@ def test_a_person_answers_every_prompt_and_the_artifact_moves(make_served: Serve
             assert ok.status_code == 200, ok.text
             assert ok.json()["outcome"] == "confirmed"
             # the world's micrometers now read what the person confirmed
-            x_mm, y_mm = truth.world.table_readings_mm()
+            x_mm, y_mm = served.service.in_worker(table_readings_mm)
             assert abs(x_mm - (readings["x_in"] - 0.5) * 25.4) < 1e-9
             assert abs(y_mm - (readings["y_in"] - 0.5) * 25.4) < 1e-9
             stale = c.post(f"/api/v1/prompt/{p['id']}/confirm", json={})
@@ -60,7 +72,7 @@ def test_a_person_answers_every_prompt_and_the_artifact_moves(make_served: Serve
         final = wait_final(c, sid)
     assert final["state"] == "succeeded", final["error"]
     assert answered >= len(PATTERN)
-    assert truth.follower.followed == answered
+    assert served.service.in_worker(readings_followed) == answered
     assert len(final["results"]["positions"]) == len(PATTERN)
     # the measured displacements follow the confirmed moves (um): the artifact really moved
     for pos in final["results"]["positions"]:

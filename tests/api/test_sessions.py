@@ -11,6 +11,7 @@ import pytest
 
 from station.cli import main
 from station.resources import SessionOutcome, SessionResource, dumps
+from station.worker import SessionHost
 from tests.api.conftest import Served, wait_final, wait_state
 
 SHORT = {"kind": "repeatability", "params": {"cycles": 3, "joints": [1], "warmup_cycles": 0}}
@@ -190,9 +191,13 @@ def test_the_camera_snapshot_is_refused_while_a_session_owns_the_camera(served: 
         wait_final(c, sid)
 
 
+def arm_joints(host: SessionHost) -> list[float]:
+    """The simulated arm's exact joint angles (in the station's worker process)."""
+    return [float(v) for v in host.devices.truth.twin.arm.actual_exact()]
+
+
 def test_out_of_limit_targets_are_refused_before_anything_moves(served: Served) -> None:
-    twin = served.service.devices.truth.twin  # type: ignore[union-attr]
-    before = list(twin.arm.actual_exact())
+    before = served.service.in_worker(arm_joints)
     far = {"S1": [[0, 30, 60, 0, 90, 0], [75, 30, 60, 0, 90, 0]]}
     with served.client() as c:
         r = c.post(
@@ -204,7 +209,7 @@ def test_out_of_limit_targets_are_refused_before_anything_moves(served: Served) 
         assert body["problems"]
         assert "nothing moved" in body["detail"]
         assert c.get("/api/v1/station").json()["session"] is None
-    assert list(twin.arm.actual_exact()) == before
+    assert served.service.in_worker(arm_joints) == before
 
 
 def test_the_cli_and_the_api_render_one_session_model(
