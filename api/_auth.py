@@ -88,7 +88,7 @@ def _access(request: Request) -> Access:
 
 
 # The dependencies are coroutines on purpose: FastAPI runs a plain function in its thread pool, a hop to
-# another thread and back on every request, each handing the GIL (which the session runner shares) over.
+# another thread and back on every request for a check that takes microseconds.
 
 
 async def require_token(request: Request) -> None:

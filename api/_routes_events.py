@@ -53,9 +53,9 @@ RENDERED = 4096
 class _Hub:
     """The app's one subscription to the service's events, on the event loop ``loop``.
 
-    The runner's thread calls :meth:`_on_event` under the runner's lock: it schedules one wake-up of
-    the loop unless one is pending already (a write to the loop's self-pipe, a system call that hands
-    the GIL over: one per burst, not one per client), and the loop then wakes every stream.
+    The thread that reads the station worker's reports calls :meth:`_on_event`: it schedules one wake-up
+    of the loop unless one is pending already (a write to the loop's self-pipe: one per burst, not one
+    per client), and the loop then wakes every stream.
     """
 
     def __init__(self, request: Request, loop: asyncio.AbstractEventLoop) -> None:

@@ -45,7 +45,6 @@ async def list_sessions(
 ) -> Response:
     # quick reads (the service's cache while a session runs, else a millisecond of SQLite, WAL: never
     # waiting on the runner) run on the loop: a hop to the thread pool and back costs more than the read
-    # when the runner's threads want the GIL
     views, total = service_of(request).list_sessions(limit=limit, offset=offset)
     return rendered(SessionList.model_construct(items=[session_model(v) for v in views], total=total))
 

@@ -21,7 +21,8 @@ States (``RunnerState``)::
 Every capture is stored (lossless, fsynced) before it is measured, and measured from the stored file, so
 re-analysis of the record reproduces the live results bit for bit. Events (state changes, steps, images,
 measurements, prompts, warnings, errors) are persisted with a per-session sequence number and a
-station-wide id, and passed to in-process listeners (the API streams them).
+station-wide id, and passed to the runner's listeners (``station serve``'s worker forwards them to the
+API's streams, ``station.worker``).
 """
 
 from __future__ import annotations
