@@ -189,3 +189,26 @@ def test_a_scale_calibration_that_is_not_a_regular_file_is_refused(
         os.mkfifo(path)
     err = usage_error(capsys, "measure", "--scale-calibration", path, str(good))
     assert "not a regular file" in err
+
+
+def test_a_reader_that_leaves_early_is_no_traceback(tmp_path: Path) -> None:
+    """``station sessions | head -0``: the pipe's reader has gone before the station writes; the station
+    exits as a shell expects of such a writer (141), with no traceback and no 'Exception ignored'."""
+    import subprocess
+    import sys
+
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        done = subprocess.run(
+            [sys.executable, "-m", "station.cli", "sessions", "--data", str(tmp_path / "data")],
+            stdout=write_end,
+            stderr=subprocess.PIPE,
+            text=True,
+            timeout=120,
+        )
+    finally:
+        os.close(write_end)
+    assert done.returncode == 141, done.stderr
+    assert "Traceback" not in done.stderr
+    assert "Exception ignored" not in done.stderr
