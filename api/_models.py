@@ -156,4 +156,5 @@ class StationModel(BaseModel):
     lock: dict[str, Any] | None
     plans: list[str]
     worker: dict[str, Any] | None = None
-    """The station's worker process (``alive``): it owns the devices and runs the sessions."""
+    """The station's worker process (``alive``, ``pid``, ``nice``): it owns the devices and runs the
+    sessions."""

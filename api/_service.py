@@ -51,6 +51,7 @@ from station.runner import ACTIVE_STATES, FINAL_STATES, Progress, RunnerState, r
 from station.session import open_record, session_measure_params
 from station.vision import MeasurementError, MeasureParams, measure
 from station.worker import (
+    WORKER_NICE,
     ConflictError,
     NotAvailableError,
     RunnerStatus,
@@ -82,6 +83,8 @@ class ServiceSettings:
     port: int = 8465
     sim_options: dict[str, Any] = field(default_factory=dict)
     """Extra ``build_sim_station`` options (tests: seed, time scale)."""
+    worker_nice: int = WORKER_NICE
+    """The station worker's scheduling priority (``station.worker.WorkerSpec.nice``)."""
 
 
 @dataclass(frozen=True)
@@ -120,6 +123,7 @@ class StationService:
                     database=settings.database,
                     sim_options=dict(settings.sim_options),
                     log_level=min(logging.INFO, logging.getLogger().getEffectiveLevel()),
+                    nice=settings.worker_nice,
                 ),
                 on_event=self._on_event,
                 on_exit=self._on_worker_exit,
@@ -281,7 +285,7 @@ class StationService:
             ),
             "lock": holder,
             "plans": list(PLAN_NAMES),
-            "worker": {"alive": self.worker.alive},
+            "worker": {"alive": self.worker.alive, "pid": self.worker.pid, "nice": info.nice},
         }
 
     # ------------------------------------------------------------------ measurement

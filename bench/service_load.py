@@ -289,6 +289,9 @@ def main() -> None:
     parser.add_argument(
         "--switch-interval", type=float, default=None, help="sys.setswitchinterval (s) for this run"
     )
+    parser.add_argument(
+        "--worker-nice", type=int, default=None, help="the station worker's nice value (default: -10)"
+    )
     parser.add_argument("--loop", default="auto", help="uvicorn's event loop (auto: uvloop when installed)")
     parser.add_argument("--http", default="auto", help="uvicorn HTTP parser (auto: httptools if installed)")
     args = parser.parse_args()
@@ -298,12 +301,18 @@ def main() -> None:
     speed_pct, settle_s = 80, 0.25
     with tempfile.TemporaryDirectory() as tmp:
         service = StationService(
-            ServiceSettings(sim=True, data=Path(tmp), sim_options={"seed": 0, "time_scale": args.time_scale})
+            ServiceSettings(
+                sim=True,
+                data=Path(tmp),
+                sim_options={"seed": 0, "time_scale": args.time_scale},
+                **({} if args.worker_nice is None else {"worker_nice": args.worker_nice}),
+            )
         )
         # the meter's hooks by their importable name (this file may run as __main__)
         from bench import service_load as hooks
 
         service.in_worker(hooks.install_meter, speed_pct, settle_s)
+        service_nice = service.worker.info.nice
         app = create_app(service, Access(token, True))
         server = uvicorn.Server(
             uvicorn.Config(
@@ -376,6 +385,7 @@ def main() -> None:
         "rounds": args.rounds,
         "time_scale": args.time_scale,
         "switch_interval_s": sys.getswitchinterval(),
+        "worker_nice": service_nice,
         "uvicorn": {"loop": args.loop, "http": args.http},
         "overhead_quiet": quiet_over,
         "overhead_loaded": loaded_over,

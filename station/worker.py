@@ -31,6 +31,7 @@ import contextlib
 import importlib
 import itertools
 import logging
+import os
 import signal
 import subprocess
 import sys
@@ -58,6 +59,9 @@ from station.runner import (
 from station.vision import MeasureParams
 
 log = logging.getLogger(__name__)
+
+WORKER_NICE = -10
+"""The worker's default nice value (see :attr:`WorkerSpec.nice`)."""
 
 START_TIMEOUT_S = 120.0
 """The longest the front end waits for the worker to build the station's devices."""
@@ -88,6 +92,10 @@ class WorkerSpec:
     log_level: int = logging.INFO
     """The worker's log records at this level and above reach the front end's loggers (which filter them
     again by their own levels)."""
+    nice: int = WORKER_NICE
+    """The worker's scheduling priority (a nice value; negative is preferred): when the machine is short
+    of CPU, the clients wait, not the arm. Lowering it needs the right to (root, or CAP_SYS_NICE, e.g.
+    systemd's ``LimitNICE=``); without it the worker keeps the front end's priority."""
 
 
 @dataclass(frozen=True)
@@ -98,6 +106,8 @@ class StationInfo:
     identities: dict[str, Any]
     name: str | None
     config_snapshot: dict[str, Any] | None
+    nice: int = 0
+    """The worker's scheduling priority (nice value) as it runs."""
 
 
 @dataclass(frozen=True)
@@ -201,6 +211,7 @@ class SessionHost:
             identities=devices.identities() if devices is not None else {},
             name=config.name if config is not None else None,
             config_snapshot=config.snapshot() if config is not None else None,
+            nice=os.getpriority(os.PRIO_PROCESS, 0),
         )
 
     def subscribe(self, listener: Callable[[EventRow], None]) -> None:
@@ -502,6 +513,22 @@ def _on_sigterm(signum: int, frame: Any) -> None:
     raise _Terminated
 
 
+def _prefer(nice: int) -> None:
+    """Run at ``nice`` when it is above the current priority and allowed; say so when it is not."""
+    current = os.getpriority(os.PRIO_PROCESS, 0)
+    if nice >= current:
+        return
+    try:
+        os.setpriority(os.PRIO_PROCESS, 0, nice)
+    except PermissionError:
+        log.info(
+            "the station worker runs at nice %d, not %d: no right to raise its priority (root or "
+            "CAP_SYS_NICE); under CPU load its cycles may then stretch",
+            current,
+            nice,
+        )
+
+
 def worker_main(conn: Connection, spec: WorkerSpec) -> None:
     """The worker process: build the station, then serve the front end's calls until the pipe closes."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the front end, which shuts us down
@@ -512,6 +539,7 @@ def worker_main(conn: Connection, spec: WorkerSpec) -> None:
         root.removeHandler(handler)
     root.addHandler(_PipeLogHandler(pipe.send))
     root.setLevel(spec.log_level)
+    _prefer(spec.nice)
     try:
         host = SessionHost(spec, pipe.send)
     except BaseException as exc:  # noqa: BLE001 - reported to the front end, which raises it
