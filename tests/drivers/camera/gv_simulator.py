@@ -128,8 +128,21 @@ class GvSimulator:
 
     @staticmethod
     def pause(pid: int) -> None:
-        """Freeze the simulator (no frames, no answers) as a stalled camera would be."""
+        """Freeze the simulator (no frames, no answers) as a stalled camera would be.
+
+        Returns once the process has stopped (SIGSTOP is delivered asynchronously: a loaded machine can
+        let it send one more frame's leader after ``kill`` returned) and the packets it had sent have
+        had time to reach the receiver and be stamped, so that a grab begun after this finds them old.
+        """
         os.kill(pid, signal.SIGSTOP)
+        deadline = time.monotonic() + 5.0
+        while time.monotonic() < deadline:
+            with open(f"/proc/{pid}/stat") as f:
+                state = f.read().rsplit(")", 1)[1].split()[0]
+            if state in ("T", "t"):
+                break
+            time.sleep(0.001)
+        time.sleep(0.05)
 
     @staticmethod
     def resume(pid: int) -> None:
