@@ -196,7 +196,17 @@ def session_measure_params(
     parameters, then ``assignments`` (``--set``)."""
     calibration, cal_source = _calibration(record, cfg, kind)
     base = _measure_base(record, kind, plan_values, cfg)
-    return measure_params_for(kind, base, dict(assignments or {}), calibration, cal_source)
+    params, cal_doc = measure_params_for(kind, base, dict(assignments or {}), calibration, cal_source)
+    if (
+        cal_doc is None
+        and kind == "reanalyse"
+        and "session" in plan_values
+        and "groove_width_mm" not in {k.lower() for k in (assignments or {})}
+    ):
+        # the source's measurement parameters carry its scale calibration's groove width: so does its
+        # record of where that width came from
+        cal_doc = record.get_session(str(plan_values["session"])).params.get("scale_calibration")
+    return params, cal_doc
 
 
 def save_scale_calibration(record: Record, row: SessionRow) -> None:

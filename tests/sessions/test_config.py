@@ -103,3 +103,27 @@ def test_devices_are_built_unconnected_and_unknown_drivers_are_named(tmp_path: P
     )
     with pytest.raises(ConfigurationError, match=r"camera\.v4l2: bad options"):
         open_station(wrong)
+
+
+def test_a_reanalysis_records_the_scale_calibration_its_source_was_measured_with(tmp_path: Path) -> None:
+    """The source's measurement parameters carry its scale calibration's groove width, so the
+    re-analysis records the same calibration as its source (unless ``--set groove_width_mm`` replaces
+    that width)."""
+    from station.record import Record
+    from station.session import session_measure_params
+    from tests.record.test_sessions import SNAPSHOT
+
+    cal = {"groove_width_mm": 0.2512, "session_id": "a1b2c3d4e5f6", "source": "scale-calibration.json"}
+    with Record(tmp_path / "data") as rec:
+        src = rec.create_session(
+            "repeatability",
+            **{**SNAPSHOT, "params": {"measure": {"groove_width_mm": 0.2512}, "scale_calibration": cal}},
+        )
+        params, doc = session_measure_params(rec, "reanalyse", {"session": src.id}, None)
+        assert params.groove_width_mm == 0.2512
+        assert doc == cal
+        params, doc = session_measure_params(
+            rec, "reanalyse", {"session": src.id}, None, {"groove_width_mm": 0.25}
+        )
+        assert params.groove_width_mm == 0.25
+        assert doc is None
