@@ -117,7 +117,10 @@ def test_a_reanalysis_records_the_scale_calibration_its_source_was_measured_with
     with Record(tmp_path / "data") as rec:
         src = rec.create_session(
             "repeatability",
-            **{**SNAPSHOT, "params": {"measure": {"groove_width_mm": 0.2512}, "scale_calibration": cal}},
+            params={"measure": {"groove_width_mm": 0.2512}, "scale_calibration": cal},
+            config=SNAPSHOT["config"],
+            identities=SNAPSHOT["identities"],
+            software=SNAPSHOT["software"],
         )
         params, doc = session_measure_params(rec, "reanalyse", {"session": src.id}, None)
         assert params.groove_width_mm == 0.2512
