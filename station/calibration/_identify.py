@@ -59,7 +59,8 @@ def _utc_now() -> dt.datetime:
 def residual_summary(
     model: CalibrationModel, delta: FloatArray, arrays: ObservationArrays
 ) -> ResidualSummary:
-    """RMS and largest residuals (mm) of ``arrays`` under ``delta``."""
+    """RMS and largest residuals (mm) of ``arrays`` under ``delta``, and each observation's (µm, to
+    0.01 µm: an outlier shows in the report's histogram)."""
     xy, dz = model.residuals_mm(delta, arrays)
     r = np.linalg.norm(xy, axis=1)
     return ResidualSummary(
@@ -69,6 +70,8 @@ def residual_summary(
         n_z=int(dz.size),
         rms_z_mm=float(np.sqrt(np.mean(dz**2))) if dz.size else None,
         max_z_mm=float(np.abs(dz).max()) if dz.size else None,
+        xy_um=np.round(r * 1000.0, 2).tolist(),
+        z_um=np.round(dz * 1000.0, 2).tolist(),
     )
 
 

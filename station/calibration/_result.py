@@ -96,6 +96,13 @@ class ResidualSummary(_Model):
     n_z: int
     rms_z_mm: float | None
     max_z_mm: float | None
+    xy_um: list[float] | None = Field(
+        default=None,
+        description="each observation's image residual (µm, the in-plane distance), in observation order",
+    )
+    z_um: list[float] | None = Field(
+        default=None, description="each sensor reading's residual (µm, measured minus predicted)"
+    )
 
 
 class DeficiencyModel(_Model):

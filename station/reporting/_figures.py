@@ -408,6 +408,79 @@ def calibration_residuals_figure(r: CalibrationResults) -> NamedFigure:
     )
 
 
+def calibration_histogram_figure(r: CalibrationResults) -> NamedFigure | None:
+    """Each observation's residual as histograms: the image residual after calibration (fitted and held
+    out), the sensor's (signed) after calibration, and the image residual of the nominal model. None
+    when the results do not list them (written before they were recorded)."""
+    c = r.calibration
+    cv = c.cross_validation
+    fitted_after, fitted_before = c.residuals.get("after"), c.residuals.get("before")
+    held_after = cv.after if cv is not None else None
+    held_before = cv.before if cv is not None else None
+    if fitted_after is None or not fitted_after.xy_um:
+        return None
+    panels: list[tuple[str, str, list[tuple[str, list[float], str]]]] = [
+        (
+            "Image residual, calibrated model",
+            "in-plane distance (µm)",
+            [
+                ("fitted", fitted_after.xy_um, AFTER_C),
+                ("held out", (held_after.xy_um or []) if held_after else [], POINT_C),
+            ],
+        )
+    ]
+    if fitted_after.z_um:
+        panels.append(
+            (
+                "Sensor residual, calibrated model",
+                "measured - predicted (µm)",
+                [
+                    ("fitted", fitted_after.z_um, AFTER_C),
+                    ("held out", (held_after.z_um or []) if held_after else [], POINT_C),
+                ],
+            )
+        )
+    if fitted_before is not None and fitted_before.xy_um:
+        panels.append(
+            (
+                "Image residual, nominal model",
+                "in-plane distance (µm)",
+                [
+                    ("fitted", fitted_before.xy_um, BEFORE_C),
+                    ("held out", (held_before.xy_um or []) if held_before else [], FLOOR_C),
+                ],
+            )
+        )
+    fig = _figure(3.6 * len(panels), 3.4)
+    axes = np.atleast_1d(fig.subplots(1, len(panels)))
+    for ax, (title, xlabel, sets) in zip(axes, panels, strict=True):
+        values = np.concatenate([np.asarray(v, dtype=float) for _, v, _ in sets if v])
+        bins = np.histogram_bin_edges(values[np.isfinite(values)], bins="auto")
+        for label, v, colour in sets:
+            if not v:
+                continue
+            arr = np.asarray(v, dtype=float)
+            _, _, patches = ax.hist(
+                arr, bins=bins, histtype="step", lw=1.4, color=colour, label=f"{label} (n={arr.size})"
+            )
+            for patch in patches:
+                patch.set_gid(
+                    f"hist-{title.split(',')[0].lower().replace(' ', '-')}-{label.replace(' ', '-')}"
+                )
+        ax.set_title(title, fontsize=10)
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel("observations")
+        ax.legend(fontsize=8, loc="upper right")
+    return NamedFigure(
+        "calibration-residual-histograms",
+        "Each observation's residual: the image residual (in-plane distance at the focal plane) and the "
+        "distance sensor's residual with the calibrated model, on the fitted and the held-out "
+        "configurations, and the image residual with the nominal model. A lone bar far out is an outlier "
+        "to look at (the fit has no robust loss).",
+        fig,
+    )
+
+
 #: (group, unit) panels of the parameter figure, in order.
 _PANELS = (
     ("DH", "mm"),
@@ -557,6 +630,9 @@ def results_figures(r: object) -> list[NamedFigure]:
         return [sweep_figure(r)] if r.trials else []
     if isinstance(r, CalibrationResults):
         out = [calibration_residuals_figure(r)]
+        histograms = calibration_histogram_figure(r)
+        if histograms is not None:
+            out.append(histograms)
         if r.parameters:
             out.append(calibration_parameters_figure(r))
         if r.calibration.identifiability.singular_values:

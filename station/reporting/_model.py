@@ -174,6 +174,9 @@ class ResidualSummary(_Model):
     n_z: int = 0
     rms_z_mm: float | None = None
     max_z_mm: float | None = None
+    xy_um: list[float] | None = None
+    """Each observation's image residual (µm); None in results written before it was recorded."""
+    z_um: list[float] | None = None
 
 
 class Deficiency(_Model):

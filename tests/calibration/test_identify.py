@@ -150,3 +150,73 @@ def test_relative_error_takes_a_result_for_its_calibrated_model(fitted):
     assert relative_error_um(held, fitted.result, *args) == relative_error_um(
         held, fitted.result.kinematics(), *args
     )
+
+
+def test_each_observations_residual_is_kept_and_agrees_with_the_summaries(fitted):
+    """The result lists every observation's residual (µm) for the report's histograms; the RMS and the
+    largest are the summaries' (to the lists' 0.01 µm rounding)."""
+    result = fitted.result
+    for summary in (result.residuals["before"], result.residuals["after"], result.cross_validation.after):
+        xy = np.asarray(summary.xy_um)
+        assert xy.size == summary.n
+        assert np.all(xy >= 0)
+        assert np.sqrt(np.mean(xy**2)) == pytest.approx(summary.rms_xy_mm * 1000, abs=0.01)
+        assert xy.max() == pytest.approx(summary.max_xy_mm * 1000, abs=0.01)
+        z = np.asarray(summary.z_um)
+        assert z.size == summary.n_z
+        if z.size:
+            assert np.abs(z).max() == pytest.approx(summary.max_z_mm * 1000, abs=0.01)
+    # fitted and held-out observations together are all of them
+    n_fitted, n_held = result.residuals["after"].n, result.cross_validation.after.n
+    assert n_fitted + n_held == len(fitted.observations)
+
+
+def test_the_report_draws_each_observations_residual(fitted):
+    """The calibration report's histograms: one step histogram per data set, holding every observation."""
+    from station.reporting._figures import calibration_histogram_figure
+    from station.reporting._model import CalibrationResults
+
+    result = fitted.result
+    doc = result.model_dump(mode="json")
+    results = CalibrationResults.model_validate(
+        {
+            "relative_error_um": {"before": 900.0, "after": 10.0, "floor": 9.0},
+            "condition_number": result.condition_number,
+            "identified_count": result.identified_count,
+            "parameters": [],
+            "calibration": doc,
+        }
+    )
+    named = calibration_histogram_figure(results)
+    assert named is not None
+    assert named.name == "calibration-residual-histograms"
+    axes = named.figure.axes
+    titles = [ax.get_title() for ax in axes]
+    has_z = bool(result.residuals["after"].z_um)
+    assert titles[0] == "Image residual, calibrated model"
+    assert titles[-1] == "Image residual, nominal model"
+    assert len(axes) == (3 if has_z else 2)
+    # the histograms' counts are the observations: fitted and held out, per panel
+    for ax, fitted_n, held_n in (
+        (axes[0], result.residuals["after"].n, result.cross_validation.after.n),
+        (axes[-1], result.residuals["before"].n, result.cross_validation.before.n),
+    ):
+        legend = ax.get_legend()
+        assert legend is not None
+        labels = [t.get_text() for t in legend.get_texts()]
+        assert labels == [f"fitted (n={fitted_n})", f"held out (n={held_n})"]
+    # results written before the residuals were listed: no histogram, no error
+    drop = ("xy_um", "z_um")
+    old = doc | {
+        "residuals": {k: {f: x for f, x in v.items() if f not in drop} for k, v in doc["residuals"].items()}
+    }
+    older = CalibrationResults.model_validate(
+        {
+            "relative_error_um": {"before": 900.0, "after": 10.0},
+            "condition_number": 1.0,
+            "identified_count": 1,
+            "parameters": [],
+            "calibration": old,
+        }
+    )
+    assert calibration_histogram_figure(older) is None

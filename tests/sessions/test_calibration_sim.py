@@ -13,6 +13,7 @@ weak directions are correlated, is held to 75 % (84 % measured).
 from __future__ import annotations
 
 import json
+import statistics
 import subprocess
 import sys
 from pathlib import Path
@@ -118,3 +119,26 @@ def test_station_calibrate_refuses_what_it_cannot_identify(session: tuple[Path, 
     proc = calibrate(data, outcome.id, "--param", "turns_deg=[0]")
     assert proc.returncode == 2
     assert "only the analysis's parameters can change" in proc.stderr
+
+
+def test_the_sessions_report_shows_each_observations_residual(
+    session: tuple[Path, SessionOutcome], tmp_path: Path
+) -> None:
+    """The session's results list every capture's residual; its report draws them as histograms."""
+    from station.commands.sessions import report_document
+    from station.reporting import write_report
+
+    data, outcome = session
+    with open_record(data) as record:
+        row = record.get_session(outcome.id)
+    residuals = outcome.results["calibration"]["residuals"]
+    held_out = outcome.results["calibration"]["cross_validation"]
+    assert len(residuals["after"]["xy_um"]) == residuals["after"]["n"]
+    assert len(held_out["after"]["xy_um"]) == held_out["after"]["n"]
+    # after calibration, nearly all captures sit within a few sigma (5 um), and the typical one is ten
+    # times closer than with the nominal model
+    after = residuals["after"]["xy_um"]
+    assert sum(v < 30.0 for v in after) >= 0.95 * len(after)
+    assert statistics.median(residuals["before"]["xy_um"]) > 10 * statistics.median(after)
+    files = write_report(report_document(row), tmp_path / "report")
+    assert any(p.stem == "calibration-residual-histograms" for p in files.figures)
