@@ -168,7 +168,7 @@ def analyse_calibration(
     setup = calibration_setup(cell, width, height)
     held = holdout_configurations(observations, params.holdout_fraction, params.seed)
     try:
-        result = identify(observations, setup, holdout=held)
+        result = identify(observations, setup, holdout=held, loss=params.loss, f_scale=params.f_scale)
     except CalibrationError as exc:
         raise PlanError(f"the identification failed: {exc}") from exc
     cv = result.cross_validation

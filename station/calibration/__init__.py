@@ -13,7 +13,14 @@ from station.calibration._identifiability import (
     analyse_identifiability,
     reported_name,
 )
-from station.calibration._identify import analyse, identify, initial_artifacts, residual_summary
+from station.calibration._identify import (
+    LOSSES,
+    analyse,
+    identify,
+    initial_artifacts,
+    residual_summary,
+    robust_weights,
+)
 from station.calibration._metric import crossing_positions, pair_errors_um, relative_error_um
 from station.calibration._model import CalibrationModel, Sigmas
 from station.calibration._observations import (
@@ -28,6 +35,7 @@ from station.calibration._result import SCHEMA_VERSION, CalibrationResult, Param
 from station.calibration._truth import equivalent_errors, true_values
 
 __all__ = [
+    "LOSSES",
     "REPORTED_NAMES",
     "SCHEMA_VERSION",
     "STRUCTURAL",
@@ -57,5 +65,6 @@ __all__ = [
     "relative_error_um",
     "reported_name",
     "residual_summary",
+    "robust_weights",
     "true_values",
 ]

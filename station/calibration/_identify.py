@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import datetime as dt
 import logging
+import math
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -82,6 +83,8 @@ def _least_squares(
     arrays: ObservationArrays,
     sigmas: Sigmas,
     max_nfev: int,
+    loss: str = "linear",
+    f_scale: float = 1.0,
 ) -> tuple[FloatArray, scipy.optimize.OptimizeResult]:
     idx = np.asarray(free, dtype=int)
     unit = model.internal_unit[idx]
@@ -101,7 +104,9 @@ def _least_squares(
         fun,
         np.zeros(idx.size),
         jac=jac,
-        method="lm",
+        method="lm" if loss == "linear" else "trf",  # Levenberg-Marquardt has no robust loss
+        loss=loss,
+        f_scale=f_scale,
         x_scale="jac",
         xtol=1e-12,
         ftol=1e-12,
@@ -109,6 +114,26 @@ def _least_squares(
         max_nfev=max_nfev,
     )
     return full(sol.x), sol
+
+
+LOSSES = ("linear", "soft_l1", "huber", "cauchy")
+"""The fit's losses (``scipy.optimize.least_squares``'s names): ``linear`` is least squares; the others
+weigh a residual beyond ``f_scale`` sigmas less, so that an outlier (a mismeasured capture) pulls less."""
+
+
+def robust_weights(r: FloatArray, loss: str, f_scale: float) -> FloatArray:
+    """Each (sigma-weighted) residual's weight ``rho'(z)``, ``z = (r / f_scale)^2``, at the solution: the
+    iteratively reweighted least-squares view of the robust fit (1 everywhere for ``linear``)."""
+    z = (np.asarray(r, dtype=float) / f_scale) ** 2
+    if loss == "linear":
+        return np.ones_like(z)
+    if loss == "soft_l1":
+        return np.asarray(1.0 / np.sqrt(1.0 + z))
+    if loss == "huber":
+        return np.where(z <= 1.0, 1.0, 1.0 / np.sqrt(np.maximum(z, 1.0)))
+    if loss == "cauchy":
+        return np.asarray(1.0 / (1.0 + z))
+    raise CalibrationError(f"unknown loss {loss!r}; one of {', '.join(LOSSES)}")
 
 
 def initial_artifacts(model: CalibrationModel, observations: Sequence[Observation]) -> FloatArray:
@@ -153,6 +178,8 @@ def identify(
     holdout: Sequence[int] = (),
     rcond: float = 1e-5,
     max_nfev: int = 50,
+    loss: str = "linear",
+    f_scale: float = 3.0,
     clock: Callable[[], dt.datetime] = _utc_now,
 ) -> CalibrationResult:
     """Identify the arm's kinematic errors, the tool and the artifacts from a calibration session.
@@ -171,6 +198,10 @@ def identify(
         Subset selection's threshold (see ``analyse_identifiability``).
     max_nfev
         Limit on the optimiser's evaluations.
+    loss, f_scale
+        The fit's loss (:data:`LOSSES`) and, for a robust one, the residual (in sigmas) beyond which an
+        observation weighs less. The covariance is then ``s2 (J^T W J)^-1`` with ``W`` the final weights
+        and ``s2`` their weighted variance factor (an M-estimator's approximation).
     clock
         Gives the result's creation time (UTC).
 
@@ -184,6 +215,10 @@ def identify(
     CalibrationError
         Bad input or too little data (fewer residuals than identified parameters).
     """
+    if loss not in LOSSES:
+        raise CalibrationError(f"unknown loss {loss!r}; one of {', '.join(LOSSES)}")
+    if not (math.isfinite(f_scale) and f_scale > 0):
+        raise CalibrationError(f"f_scale must be a positive number of sigmas, got {f_scale!r}")
     sig = sigmas or Sigmas()
     held = set(holdout)
     train = [o for o in observations if o.configuration not in held]
@@ -224,13 +259,14 @@ def identify(
             f"{m} residuals cannot determine {len(free)} parameters: capture more configurations"
         )
     # (3) the fit
-    delta, sol = _least_squares(model, before, free, arrays, sig, max_nfev)
+    delta, sol = _least_squares(model, before, free, arrays, sig, max_nfev, loss, f_scale)
     # (4) covariance on the identified subset
     J = model.jacobian(delta, arrays, sig, free)
     r = model.weighted_residuals(delta, arrays, sig)
+    w = robust_weights(r, loss, f_scale)
     dof = m - len(free)
-    s2 = float(r @ r / dof)
-    cov = s2 * np.linalg.pinv(J.T @ J, rcond=1e-15, hermitian=True)
+    s2 = float(np.sum(w * r * r) / dof)
+    cov = s2 * np.linalg.pinv(J.T @ (J * w[:, None]), rcond=1e-15, hermitian=True)
     sigma = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * model.internal_unit[free]
     t95 = float(scipy.stats.t.ppf(0.975, dof))
     sigma_of = dict(zip(free, sigma, strict=True))
@@ -293,7 +329,10 @@ def identify(
         },
         cross_validation=cv,
         fit=FitSummary(
-            method="lm",
+            method="lm" if loss == "linear" else "trf",
+            loss=loss,
+            f_scale=None if loss == "linear" else f_scale,
+            downweighted=int(np.sum(w < 0.5)),
             evaluations=int(sol.nfev),
             status=int(sol.status),
             message=str(sol.message),

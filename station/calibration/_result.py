@@ -149,6 +149,9 @@ class FitSummary(_Model):
     residuals: int
     dof: int
     s2: float = Field(description="the weighted residuals' variance factor; covariance = s2 (J^T J)^-1")
+    loss: str = Field("linear", description="the fit's loss: linear (least squares) or a robust one")
+    f_scale: float | None = Field(None, description="a robust loss's scale (sigmas)")
+    downweighted: int = Field(0, description="residuals weighing less than half (beyond the loss's scale)")
 
 
 class CalibrationResult(_Model):

@@ -37,7 +37,7 @@ def register(sub: SubParsers) -> None:
         action="append",
         default=[],
         metavar="NAME=VALUE",
-        help="override a plan parameter of the analysis (holdout_fraction, seed)",
+        help="override a parameter of the analysis (holdout_fraction, seed, loss, f_scale)",
     )
     p.add_argument("--out", metavar="FILE", help="write the calibrated parameter set (JSON) here")
     p.add_argument("--json", action="store_true", help="print the outcome as one JSON object (last line)")
@@ -45,7 +45,7 @@ def register(sub: SubParsers) -> None:
     p.set_defaults(func=lambda args: run_calibrate(p, args))
 
 
-ANALYSIS_PARAMS = ("holdout_fraction", "seed")
+ANALYSIS_PARAMS = ("holdout_fraction", "seed", "loss", "f_scale")
 
 
 def run_calibrate(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
@@ -87,6 +87,10 @@ def run_calibrate(parser: argparse.ArgumentParser, args: argparse.Namespace) -> 
             return 2
         try:
             params: Any = validate_params(CALIBRATION, {**session.params.get("plan", {}), **overrides})
+        except PlanError as exc:  # a bad value given on the command line: a usage error
+            print(f"station calibrate: {exc}", file=sys.stderr)
+            return 2
+        try:
             measure = MeasureParams.model_validate(session.params.get("measure") or {})
             cell = calibration_cell_from_config(session.config, measure)
             if cell is None:

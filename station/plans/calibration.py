@@ -29,7 +29,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -157,6 +157,12 @@ class CalibrationParams(BaseModel):
     settle_s: float = Field(0.25, ge=0.0, le=10.0)
     holdout_fraction: float = Field(0.25, ge=0.0, lt=0.9, description="configurations held out of the fit")
     seed: int = Field(0, description="which configurations are held out")
+    loss: Literal["linear", "soft_l1", "huber", "cauchy"] = Field(
+        "linear",
+        description="the fit's loss: linear (least squares), or a robust one under which a capture whose"
+        " residual is beyond f_scale sigmas (a mismeasured one) pulls less",
+    )
+    f_scale: float = Field(3.0, gt=0, le=100, description="a robust loss's scale, in sigmas (5 um)")
 
     @field_validator("turns_deg")
     @classmethod

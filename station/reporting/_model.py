@@ -218,6 +218,9 @@ class FitSummary(_Model):
     residuals: int
     dof: int
     s2: float | None = None
+    loss: str = "linear"
+    f_scale: float | None = None
+    downweighted: int = 0
 
 
 class CalibrationDocument(_Model):

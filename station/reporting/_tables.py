@@ -414,6 +414,12 @@ def calibration_residuals_table(r: CalibrationResults) -> Table:
             f"fit: {f.method}, {f.evaluations} evaluations, status {f.status} ({f.message}); "
             f"{f.observations} observations, {f.residuals} residuals, {f.dof} degrees of freedom{s2}"
         )
+        if f.loss != "linear":
+            scale = "" if f.f_scale is None else f" (scale {f.f_scale:g} sigmas)"
+            notes.append(
+                f"robust loss {f.loss}{scale}: {f.downweighted} residuals weigh less than half; intervals"
+                " from s2 (J^T W J)^-1 with the final weights"
+            )
     if c.sigmas_mm:
         sig = ", ".join(f"{k} {v * 1000.0:g} um" for k, v in c.sigmas_mm.items())
         notes.append(f"weights: measurement sigmas {sig}")

@@ -220,3 +220,62 @@ def test_the_report_draws_each_observations_residual(fitted):
         }
     )
     assert calibration_histogram_figure(older) is None
+
+
+def test_a_robust_loss_keeps_a_few_mismeasured_captures_from_pulling_the_fit(fitted):
+    """Ten fitted captures measured 150 um off (a misread crossing): least squares spreads them over
+    the parameters and the held-out error grows; soft_l1 weighs them less, counts them, and stays near
+    the clean fit."""
+    import dataclasses
+
+    observations = list(fitted.observations)
+    held = set(fitted.holdout)
+    fitted_ids = [i for i, o in enumerate(observations) if o.configuration not in held]
+    rng = np.random.default_rng(7)
+    bad = sorted(rng.choice(fitted_ids, size=10, replace=False).tolist())
+    for i in bad:
+        u, v = observations[i].center_px
+        observations[i] = dataclasses.replace(observations[i], center_px=(u + 15.0, v))  # 150 um
+    setup = synthetic.setup_for()
+    clean = fitted.result.cross_validation.relative_error_um["after"]
+    plain = identify(observations, setup, holdout=fitted.holdout)
+    robust = identify(observations, setup, holdout=fitted.holdout, loss="soft_l1", f_scale=3.0)
+    e_plain = plain.cross_validation.relative_error_um["after"]
+    e_robust = robust.cross_validation.relative_error_um["after"]
+    print(
+        f"held-out relative error: clean {clean:.2f}, least squares {e_plain:.2f}, soft_l1 {e_robust:.2f} um"
+    )
+    assert e_plain > 1.3 * clean
+    assert e_robust < 1.15 * clean
+    assert robust.fit.loss == "soft_l1"
+    assert robust.fit.method == "trf"
+    assert robust.fit.f_scale == 3.0
+    assert plain.fit.loss == "linear"
+    assert plain.fit.downweighted == 0
+    # the ten outliers' residuals (x, and y which stays small) are among the down-weighted ones
+    assert robust.fit.downweighted >= 10
+    after = np.asarray(robust.residuals["after"].xy_um)
+    assert np.sort(after)[-10:].min() > 100.0  # each outlier keeps its own residual, not spread out
+    # the report says how the fit weighed them
+    from station.reporting._model import CalibrationResults
+    from station.reporting._tables import calibration_residuals_table
+
+    results = CalibrationResults.model_validate(
+        {
+            "relative_error_um": {"before": 900.0, "after": e_robust},
+            "condition_number": robust.condition_number,
+            "identified_count": robust.identified_count,
+            "parameters": [],
+            "calibration": robust.model_dump(mode="json"),
+        }
+    )
+    notes = " ".join(calibration_residuals_table(results).notes)
+    assert f"robust loss soft_l1 (scale 3 sigmas): {robust.fit.downweighted} residuals weigh less" in notes
+
+
+def test_an_unknown_loss_or_scale_is_refused_with_the_choices(fitted):
+    setup = synthetic.setup_for()
+    with pytest.raises(CalibrationError, match="soft_l1"):
+        identify(fitted.observations, setup, loss="tukey")
+    with pytest.raises(CalibrationError, match="f_scale"):
+        identify(fitted.observations, setup, loss="huber", f_scale=0.0)

@@ -108,6 +108,16 @@ def test_station_calibrate_identifies_the_stored_session_again(
     other = json.loads(proc.stdout.strip().splitlines()[-1])["results"]
     assert other["held_out_configurations"] != outcome.results["held_out_configurations"]
     assert other["relative_error_um"]["after"] * 10 <= other["relative_error_um"]["before"]
+    # a robust loss on the same data: recorded with the fit, and on clean captures no worse than least
+    # squares (within a tenth)
+    proc = calibrate(data, outcome.id, "--json", "--param", "loss=soft_l1")
+    assert proc.returncode == 0, proc.stderr
+    robust = json.loads(proc.stdout.strip().splitlines()[-1])["results"]
+    assert robust["calibration"]["fit"]["loss"] == "soft_l1"
+    assert robust["relative_error_um"]["after"] <= 1.1 * rel0["after"]
+    proc = calibrate(data, outcome.id, "--param", "loss=tukey")
+    assert proc.returncode == 2
+    assert "soft_l1" in proc.stderr
 
 
 def test_station_calibrate_refuses_what_it_cannot_identify(session: tuple[Path, SessionOutcome]) -> None:
