@@ -133,11 +133,6 @@ class StationService:
             raise
         self._identities: dict[str, Any] = dict(self.worker.info.identities)
 
-    @property
-    def has_station(self) -> bool:
-        """Whether the service drives a station (``--sim`` or ``--config``), not only the record."""
-        return bool(self.worker.info.devices)
-
     def in_worker(self, fn: Callable[..., Any], *args: Any) -> Any:
         """``fn(host, *args)`` in the station's worker process, its value returned here (``fn`` and the
         arguments are pickled: a module-level function). For tests and benchmarks: a simulated
@@ -239,7 +234,7 @@ class StationService:
         status = self.worker.status
         if status is None or status.session_id != session_id:
             return None
-        return status.state in FINAL_STATES or not self.worker.alive
+        return self.running is None
 
     # ------------------------------------------------------------------ the station
 
@@ -357,15 +352,15 @@ class StationService:
         (PreflightError: nothing moved). ConflictError while another one runs."""
         if kind not in PLAN_NAMES:
             raise PlanError(f"unknown session kind {kind!r}; known: {', '.join(PLAN_NAMES)}")
-        names = measurement_names(assignments or {})
-        self._check_open()
-        sid = self.worker.call("create", kind, dict(params), names)
-        self._generation += 1
-        return self.get_session(sid)
+        return self._start("create", kind, dict(params), measurement_names(assignments or {}))
 
-    def _check_open(self) -> None:
+    def _start(self, method: str, *args: Any) -> SessionView:
+        """Start a session in the worker (``create`` or ``resume``) and show it."""
         if self._closed:
             raise ConflictError("the service is shutting down")
+        sid = self.worker.call(method, *args)
+        self._generation += 1
+        return self.get_session(sid)
 
     def wait(self, timeout_s: float | None = None) -> bool:
         """Wait for the worker's session thread to end (tests, shutdown); True when it has."""
@@ -451,10 +446,7 @@ class StationService:
             RunnerState.FAILED,
             RunnerState.ABORTED,
         ):
-            self._check_open()
-            sid = self.worker.call("resume", row.id)
-            self._generation += 1
-            return self.get_session(sid)
+            return self._start("resume", row.id)
         if row.state in ACTIVE_STATES:
             raise ConflictError(
                 f"session {row.id} is {row.state} in another process (the station lock's holder); "
@@ -466,7 +458,7 @@ class StationService:
 
     def prompt(self) -> Prompt | None:
         """The open operator prompt, as the worker last reported it (no call to the worker)."""
-        return self.worker.prompt if self.has_station else None
+        return self.worker.prompt  # None without a station: nothing asks
 
     def confirm(self, prompt_id: str, readings: Mapping[str, float] | None, *, by: str) -> PromptAnswer:
         answer: PromptAnswer = self.worker.call("confirm", prompt_id, readings, by)

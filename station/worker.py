@@ -45,7 +45,7 @@ from multiprocessing.connection import Connection, Pipe
 from pathlib import Path
 from typing import Any
 
-from station.plans import PLAN_NAMES, PlanError, get_plan, parse_params
+from station.plans import get_plan, parse_params
 from station.prompts import Prompt, PromptAnswer, PromptBroker, PromptEvent
 from station.record import EventRow, RecordError, SessionLockError, lock_holder
 from station.runner import (
@@ -202,9 +202,14 @@ class SessionHost:
 
     # ------------------------------------------------------------------ what the front end mirrors
 
+    @property
+    def station_config(self) -> Any:
+        """The station's configuration: the devices' (the sim's), else the one given; None offline."""
+        return self.devices.config if self.devices is not None else self.config
+
     def info(self) -> StationInfo:
         devices = self.devices
-        config = devices.config if devices is not None else self.config
+        config = self.station_config
         present = tuple(n for n in DEVICE_NAMES if devices is not None and getattr(devices, n) is not None)
         return StationInfo(
             devices=present,
@@ -262,9 +267,7 @@ class SessionHost:
         """Create and start a session; its id once pre-flight has passed (PreflightError otherwise)."""
         from station.session import session_measure_params
 
-        if kind not in PLAN_NAMES:
-            raise PlanError(f"unknown session kind {kind!r}; known: {', '.join(PLAN_NAMES)}")
-        plan = get_plan(kind)
+        plan = get_plan(kind)  # PlanError naming the plans (the service checked the kind first)
         plan_params = parse_params(plan, dict(params))
         if plan.needs and self.devices is None:
             raise NotAvailableError(
@@ -329,10 +332,8 @@ class SessionHost:
         return not thread.is_alive()
 
     def _station_name(self) -> str:
-        if self.devices is not None:
-            name: str = self.devices.config.name
-            return name
-        return self.config.name if self.config is not None else "default"
+        config = self.station_config
+        return str(config.name) if config is not None else "default"
 
     def _start(self, runner: SessionRunner) -> str:
         with self._lock:

@@ -104,7 +104,7 @@ def _least_squares(
         fun,
         np.zeros(idx.size),
         jac=jac,
-        method="lm" if loss == "linear" else "trf",  # Levenberg-Marquardt has no robust loss
+        method=_method(loss),
         loss=loss,
         f_scale=f_scale,
         x_scale="jac",
@@ -119,6 +119,11 @@ def _least_squares(
 LOSSES = ("linear", "soft_l1", "huber", "cauchy")
 """The fit's losses (``scipy.optimize.least_squares``'s names): ``linear`` is least squares; the others
 weigh a residual beyond ``f_scale`` sigmas less, so that an outlier (a mismeasured capture) pulls less."""
+
+
+def _method(loss: str) -> str:
+    """The optimiser's method for ``loss``: Levenberg-Marquardt, which has no robust loss, or trf."""
+    return "lm" if loss == "linear" else "trf"
 
 
 def robust_weights(r: FloatArray, loss: str, f_scale: float) -> FloatArray:
@@ -329,7 +334,7 @@ def identify(
         },
         cross_validation=cv,
         fit=FitSummary(
-            method="lm" if loss == "linear" else "trf",
+            method=_method(loss),
             loss=loss,
             f_scale=None if loss == "linear" else f_scale,
             downweighted=int(np.sum(w < 0.5)),

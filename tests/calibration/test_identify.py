@@ -279,3 +279,13 @@ def test_an_unknown_loss_or_scale_is_refused_with_the_choices(fitted):
         identify(fitted.observations, setup, loss="tukey")
     with pytest.raises(CalibrationError, match="f_scale"):
         identify(fitted.observations, setup, loss="huber", f_scale=0.0)
+
+
+def test_the_calibration_plan_offers_exactly_the_fits_losses():
+    """The plan's ``loss`` parameter (a Literal, for its schema and messages) lists ``LOSSES``."""
+    import typing
+
+    from station.calibration import LOSSES
+    from station.plans.calibration import CalibrationParams
+
+    assert typing.get_args(CalibrationParams.model_fields["loss"].annotation) == LOSSES
