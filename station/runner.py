@@ -535,6 +535,7 @@ class SessionRunner:
 
     def _steps(self, ctx: PlanContext) -> tuple[list[Step], list[Step]]:
         steps = list(self.plan.steps(self.params, ctx))
+        planned = len(steps)
         prelude: list[Step] = []
         assert ctx.session_id is not None
         if self._resume is not None:
@@ -549,8 +550,10 @@ class SessionRunner:
             )
             steps = remaining
         with self._lock:
-            self._total = len(steps) + len(prelude)
-            self._done = 0
+            # progress counts the plan's steps over the whole session: a resumed run continues the count
+            # (a resume prelude re-establishes the set-up; its steps are not the plan's)
+            self._total = planned
+            self._done = planned - len(steps)
         return steps, prelude
 
     def _connect(self, stack: contextlib.ExitStack) -> None:
@@ -731,7 +734,8 @@ class SessionRunner:
             return
         self.record.finish_step(sid, step.index, data=data)
         with self._lock:
-            self._done += 1
+            if step.index < PRELUDE_BASE:
+                self._done += 1
             self._t_steps.append(time.monotonic() - t0)
         self._event(
             "step_finished", {"index": step.index, "name": step.name, "progress": self.progress().to_json()}

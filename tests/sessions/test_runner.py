@@ -284,6 +284,41 @@ def test_resume_skips_completed_steps_and_recaptures_the_reference(record: Recor
     assert results_of(record, resumed)["tests"]["J1"]["n_cycles"] == 6
 
 
+def test_a_resumed_session_continues_its_progress_count(record: Record, fake: FakeStation) -> None:
+    """Progress counts the plan's steps over the whole session: a resumed run starts from the steps
+    already done, never from 0 of what is left (the page showed "0 / 143" after a resume)."""
+    r, _ = runner(record, fake, "repeatability", cycles=6, warmup_cycles=0, joints=[1])
+    r.subscribe(lambda e: r.abort() if e.type == "step_started" and e.data["index"] == 4 else None)
+    assert r.run() is RunnerState.ABORTED
+    planned = r.progress().total
+    sid = sid_of(r)
+    done_before = sum(1 for s in record.steps(sid) if s.state == "done")
+    assert 0 < done_before < planned
+    plan = get_plan("repeatability")
+    row = record.get_session(sid)
+    resumed = SessionRunner(
+        record,
+        plan,
+        parse_params(plan, row.params["plan"]),
+        devices=FakeStation().devices(),
+        resume_session=row,
+    )
+    log = EventLog()
+    resumed.subscribe(log)
+    assert resumed.run() is RunnerState.SUCCEEDED
+    counts = [
+        (e.data["progress"]["done"], e.data["progress"]["total"])
+        for e in log.events
+        if e.type == "step_finished"
+    ]
+    assert (
+        counts[0][0] >= done_before
+    )  # the prelude's step (the reference again) does not count as the plan's
+    assert {total for _, total in counts} == {planned}
+    assert counts[-1] == (planned, planned)
+    assert [d for d, _ in counts] == sorted(d for d, _ in counts)
+
+
 def test_plan_parameters_are_validated_with_the_field_named() -> None:
     from station.plans import PlanError
 
