@@ -793,7 +793,13 @@ class SessionRunner:
         elif isinstance(action, MoveTable):
             table = require(devices.table, "table")
             timeout = getattr(self.params, "prompt_timeout_s", None)
-            pos = table.move_to(action.x_mm, action.y_mm, timeout_s=timeout)
+            # the operator's prompt says which position of how many, and whether this is the overshoot
+            with devices.broker.context(
+                position=step.index + 1,
+                positions=self._total,
+                move="overshoot" if action.overshoot else "position",
+            ):
+                pos = table.move_to(action.x_mm, action.y_mm, timeout_s=timeout)
             return {} if action.overshoot else {"table_confirmed_mm": [pos.x_mm, pos.y_mm]}
         elif isinstance(action, Settle):
             with self._lock:
