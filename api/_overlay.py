@@ -3,6 +3,7 @@ lines, the corners and the centre), as the operator page shows it."""
 
 from __future__ import annotations
 
+import json
 from typing import Any
 
 import cv2
@@ -55,3 +56,17 @@ def _clip_line(
         return None
     (x0, y0), (x1, y1) = pts[0], pts[-1]
     return (round(x0), round(y0)), (round(x1), round(y1))
+
+
+MEASUREMENT_HEADER = "X-Measurement"
+"""The response header of a live-view picture that carries its measurement's numbers (JSON, ASCII)."""
+
+
+def measurement_header(result: dict[str, Any] | None) -> dict[str, str]:
+    """``{"X-Measurement": JSON}`` with the measurement's ``ok``, ``center_px``, ``center_mm``, ``code``
+    and ``error`` (the numbers the page shows under the picture); empty without a measurement."""
+    if result is None:
+        return {}
+    keys = ("ok", "center_px", "center_mm", "code", "error")
+    doc = {k: result.get(k) for k in keys if result.get(k) is not None}
+    return {MEASUREMENT_HEADER: json.dumps(doc, ensure_ascii=True, allow_nan=False, default=str)}

@@ -23,6 +23,7 @@ from api._models import (
     rendered,
     session_model,
 )
+from api._overlay import measurement_header
 from api._routes_station import read_body
 
 router = APIRouter(prefix="/api/v1/sessions")
@@ -95,7 +96,8 @@ async def results(request: Request, session_id: str, format: Literal["json", "cs
             "no_table",
         )
     buf = io.StringIO()
-    writer = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
+    columns = list(dict.fromkeys(k for row in rows for k in row))  # every row's keys, in order of first use
+    writer = csv.DictWriter(buf, fieldnames=columns, restval="", lineterminator="\n")
     writer.writeheader()
     writer.writerows(rows)
     return Response(
@@ -106,7 +108,16 @@ async def results(request: Request, session_id: str, format: Literal["json", "cs
 
 
 def table_rows(kind: str, results: dict[str, Any]) -> list[dict[str, Any]]:
-    """The per-position rows of a validation, the per-cycle rows of a repeatability session."""
+    """The per-position rows of a validation, the per-cycle rows of a repeatability session, the
+    per-parameter rows of a calibration, the per-trial rows of a sweep; a re-analysis's as its kind's."""
+    if kind == "reanalyse":
+        inner = results.get("kind")
+        body = results.get(inner) if isinstance(inner, str) else None
+        return table_rows(inner, body) if isinstance(inner, str) and isinstance(body, dict) else []
+    if kind == "calibration":
+        return [_parameter_row(p) for p in results.get("parameters") or [] if isinstance(p, dict)]
+    if kind == "sweep":
+        return [_flat(t) for t in results.get("trials") or [] if isinstance(t, dict)]
     if kind == "validation":
         return [_flat(p) for p in results.get("positions", [])]
     if kind == "repeatability":
@@ -124,6 +135,22 @@ def table_rows(kind: str, results: dict[str, Any]) -> list[dict[str, Any]]:
                 )
         return out
     return []
+
+
+def _parameter_row(p: dict[str, Any]) -> dict[str, Any]:
+    """One identified (or fixed) parameter of a calibration: its 95 % interval as two columns."""
+    interval = p.get("interval") or [None, None]
+    return {
+        "name": p.get("name"),
+        "unit": p.get("unit"),
+        "nominal": p.get("nominal"),
+        "estimate": p.get("estimate"),
+        "interval_low": interval[0],
+        "interval_high": interval[1],
+        "sigma": p.get("sigma"),
+        "identified": p.get("identified"),
+        "structural": p.get("structural"),
+    }
 
 
 def _flat(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
@@ -160,13 +187,25 @@ async def figures(request: Request, session_id: str) -> dict[str, list[str]]:
     return {"figures": sorted(p.name for p in folder.iterdir() if p.suffix in (".png", ".svg"))}
 
 
-@router.get("/{session_id}/report.html", dependencies=[Depends(read_access)], response_class=FileResponse)
-async def report(request: Request, session_id: str) -> FileResponse:
+_HEAD = re.compile(r"<head>", re.IGNORECASE)
+
+
+@router.get(
+    "/{session_id}/report.html",
+    dependencies=[Depends(read_access)],
+    response_class=Response,
+    responses={200: {"content": {"text/html": {}}}},
+)
+async def report(request: Request, session_id: str) -> Response:
+    """The report's HTML page. Its links to the figure files are relative (``name.png``: they work in the
+    report's folder on disk); served here, a ``<base>`` points them at the figure route."""
     folder = await run_in_threadpool(service_of(request).report_dir, session_id)
     pages = sorted(folder.glob("*.html"))
     if not pages:
         raise ApiError(409, "the report has no HTML page", "no_report")
-    return FileResponse(pages[0], media_type="text/html")
+    text = await run_in_threadpool(pages[0].read_text, encoding="utf-8")
+    text = _HEAD.sub('<head><base href="figures/">', text, count=1)
+    return Response(text, media_type="text/html")
 
 
 @router.get("/{session_id}/export.zip", dependencies=[Depends(read_access)])
@@ -187,5 +226,6 @@ async def export(request: Request, session_id: str) -> Response:
 )
 async def latest(request: Request, session_id: str, overlay: bool = True) -> Response:
     """The session's latest capture with its measurement drawn (the live view while it runs)."""
-    png = await run_in_threadpool(service_of(request).latest_capture_png, session_id, overlay=overlay)
-    return Response(png, media_type="image/png", headers={"Cache-Control": "no-store"})
+    live = await run_in_threadpool(service_of(request).latest_capture, session_id, overlay=overlay)
+    headers = {"Cache-Control": "no-store", **measurement_header(live.measurement)}
+    return Response(live.png, media_type="image/png", headers=headers)

@@ -8,10 +8,11 @@ from fastapi import APIRouter, Depends, Request
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import Response
 
-from api._auth import read_access, require_token
+from api._auth import Access, read_access, require_token
 from api._deps import service_of
 from api._errors import ApiError
-from api._models import Health, StationModel, rendered
+from api._models import AccessModel, Health, StationModel, rendered
+from api._overlay import measurement_header
 from station import __version__
 from station.imageio import DEFAULT_MAX_BYTES, ImageLimits
 from station.vision import MeasureParams
@@ -25,6 +26,16 @@ MAX_UPLOAD_BYTES = DEFAULT_MAX_BYTES
 @router.get("/health", response_model=Health, summary="liveness (no token)")
 async def health() -> Health:
     return Health(version=__version__)
+
+
+@router.get("/access", response_model=AccessModel, summary="what this client may do (no token needed)")
+async def access(request: Request) -> AccessModel:
+    """Whether the request carries the station's token (header or the login cookie) and whether reads are
+    open without it: the page says it is read-only, or that it needs the login URL, before anything fails."""
+    granted: Access = request.app.state.access
+    return AccessModel(
+        authenticated=granted.matches(granted.presented(request)), open_reads=granted.open_reads
+    )
 
 
 @router.get("/station", response_model=StationModel, dependencies=[Depends(read_access)])
@@ -42,8 +53,9 @@ async def station(request: Request) -> Response:
 async def snapshot(request: Request, overlay: bool = False) -> Response:
     """A frame from the camera (optionally with the measurement drawn on it); 409 while a session owns
     the camera: its latest capture is at ``/api/v1/sessions/{id}/latest.png`` then."""
-    png = await run_in_threadpool(service_of(request).snapshot_png, overlay=overlay)
-    return Response(png, media_type="image/png", headers={"Cache-Control": "no-store"})
+    live = await run_in_threadpool(service_of(request).snapshot, overlay=overlay)
+    headers = {"Cache-Control": "no-store", **measurement_header(live.measurement)}
+    return Response(live.png, media_type="image/png", headers=headers)
 
 
 async def read_body(request: Request, max_bytes: int) -> bytes:

@@ -32,6 +32,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from api._progress import RecordedProgress
+from api._robot import RobotMirror
 from station.batch import FileResult
 from station.config import ConfigurationError, StationConfig, load_config
 from station.imageio import ImageFileError, ImageLimits, decode_image
@@ -88,6 +90,15 @@ class ServiceSettings:
 
 
 @dataclass(frozen=True)
+class LiveImage:
+    """A picture of the live view (PNG, the measurement drawn) and that measurement (``station measure
+    --json``'s object; None when there is none)."""
+
+    png: bytes
+    measurement: dict[str, Any] | None
+
+
+@dataclass(frozen=True)
 class SessionView:
     """A session as the API shows it: the record's row plus the live progress when it runs."""
 
@@ -132,6 +143,10 @@ class StationService:
             self.record.close()
             raise
         self._identities: dict[str, Any] = dict(self.worker.info.identities)
+        self._recorded = RecordedProgress(self.record)
+        self.robot = RobotMirror(lambda: self.worker.call("robot", timeout_s=60))
+        """The robot's state and pose (read by the worker between sessions, see ``api/_robot.py``)."""
+        self.robot.refresh()
 
     def in_worker(self, fn: Callable[..., Any], *args: Any) -> Any:
         """``fn(host, *args)`` in the station's worker process, its value returned here (``fn`` and the
@@ -190,6 +205,8 @@ class StationService:
             self._identities = dict(event.data.get("devices", {}))
         elif event.type == "state":
             self._generation += 1
+            if event.data.get("state") in FINAL_STATES:
+                self.robot.refresh()  # a thread of its own: this reader thread delivers the answer
         recent = self._recent
         if recent and recent[-1].session_id != event.session_id:
             recent.clear()
@@ -250,7 +267,12 @@ class StationService:
         """Configuration (secrets redacted), each device's identity and state; never touches a device.
         At most a second old (the station lock's holder, read from its file)."""
         runner = self.running
-        key = (runner.session_id if runner else None, runner.state if runner else None, id(self._identities))
+        key = (
+            runner.session_id if runner else None,
+            runner.state if runner else None,
+            id(self._identities),
+            self.robot.generation,
+        )
         cached = self._station_cache
         now = time.monotonic()
         if cached is not None and cached[0] == key and now - cached[1] < CACHE_MAX_AGE_S:
@@ -262,10 +284,18 @@ class StationService:
     def _station(self, runner: RunnerStatus | None) -> dict[str, Any]:
         info = self.worker.info
         busy = runner is not None
+        robot = self.robot.doc(busy=busy) if "robot" in info.devices else None
         devices: dict[str, Any] = {
             name: {"identity": self._identities.get(name, {}), "state": "in_session" if busy else "idle"}
             for name in info.devices
         }
+        if robot is not None:
+            # its identity as the latest read gave it (the worker reads it at start: never "?" until the
+            # first session), its state as that read found it
+            devices["robot"] = {
+                "identity": {**devices["robot"]["identity"], **(self.robot.identity() or {})},
+                "state": robot["state"],
+            }
         holder = lock_holder(self.record.data_dir)
         return {
             "name": info.name or "offline",
@@ -281,6 +311,7 @@ class StationService:
             "lock": holder,
             "plans": list(PLAN_NAMES),
             "worker": {"alive": self.worker.alive, "pid": self.worker.pid, "nice": info.nice},
+            "robot": robot,
         }
 
     # ------------------------------------------------------------------ measurement
@@ -314,11 +345,15 @@ class StationService:
     def snapshot_png(self, *, overlay: bool = False) -> bytes:
         """One frame from the camera as PNG (optionally with the measurement drawn); ConflictError while
         a session owns the camera."""
+        return self.snapshot(overlay=overlay).png
+
+    def snapshot(self, *, overlay: bool = False) -> LiveImage:
+        """:meth:`snapshot_png` with the measurement it drew (None without ``overlay``)."""
         from api._overlay import overlay_png
 
         image = self.worker.call("grab", timeout_s=60)
         result = self._measure_array(image) if overlay else None
-        return overlay_png(image, result)
+        return LiveImage(overlay_png(image, result), result)
 
     def _measure_array(self, image: Any) -> dict[str, Any]:
         mp, _ = session_measure_params(self.record, "repeatability", {}, self.config, {})
@@ -329,6 +364,10 @@ class StationService:
 
     def latest_capture_png(self, session_id: str, *, overlay: bool = True) -> bytes:
         """The session's latest stored capture with its measurement drawn (the live view in a session)."""
+        return self.latest_capture(session_id, overlay=overlay).png
+
+    def latest_capture(self, session_id: str, *, overlay: bool = True) -> LiveImage:
+        """:meth:`latest_capture_png` with the capture's recorded measurement (None before it is measured)."""
         from api._overlay import overlay_png
 
         row = self.record.get_session(session_id)
@@ -337,11 +376,9 @@ class StationService:
             raise ConflictError(f"session {row.id} has no capture yet")
         cap = captures[-1]
         image = self.record.load_image(cap)
-        result = None
-        if overlay:
-            found = [m for m in self.record.measurements(row.id) if m.capture_id == cap.id]
-            result = found[-1].result if found else None
-        return overlay_png(image, result)
+        found = [m for m in self.record.measurements(row.id) if m.capture_id == cap.id]
+        result = found[-1].result if found else None
+        return LiveImage(overlay_png(image, result if overlay else None), result)
 
     # ------------------------------------------------------------------ sessions
 
@@ -422,12 +459,7 @@ class StationService:
                 # from the record, with its error
                 row = dataclasses.replace(row, state=str(state))
             return SessionView(row, status.progress)
-        done = (
-            len([s for s in self.record.steps(row.id) if s.state == "done"])
-            if row.state in ACTIVE_STATES
-            else 0
-        )
-        return SessionView(row, Progress(done, 0, None))
+        return SessionView(row, self._recorded.of(row))
 
     def act(self, session_id: str, action: str) -> SessionView:
         """pause, resume (also continues an interrupted, stopped, failed or aborted session), stop, abort."""
@@ -560,6 +592,7 @@ __all__ = [
     "ConflictError",
     "ImageFileError",
     "ImportArchiveError",
+    "LiveImage",
     "NotAvailableError",
     "ServiceSettings",
     "SessionView",

@@ -407,8 +407,16 @@ class SessionHost:
     def rpc_cancel(self, prompt_id: str, reason: str, by: str) -> PromptAnswer:
         return self._broker().cancel(prompt_id, reason=reason, by=by)
 
+    def _settle(self) -> None:
+        """Wait for an ended session's thread to finish: it publishes its final state before it lets go
+        of the station lock, and a read of a device right then would find the station busy."""
+        thread, runner = self._thread, self._runner
+        if thread is not None and runner is not None and runner.state in FINAL_STATES:
+            thread.join(30)
+
     def rpc_grab(self) -> Any:
         """One frame from the camera (ConflictError while a session owns it)."""
+        self._settle()
         with self._lock:
             runner = self._runner
             if runner is not None and runner.state not in FINAL_STATES:
@@ -426,6 +434,38 @@ class SessionHost:
                 return camera.grab().image
             finally:
                 camera.close()
+
+    def rpc_robot(self) -> dict[str, Any] | None:
+        """The robot read now: identity, power, homed, attained and commanded joints (deg) and the
+        configured reference pose; None without a robot. It is connected for the read and closed again
+        (reads only: nothing moves). ConflictError while a session owns it."""
+        from dataclasses import asdict
+
+        self._settle()
+        with self._lock:
+            runner = self._runner
+            if runner is not None and runner.state not in FINAL_STATES:
+                raise ConflictError(f"session {runner.session_id} owns the robot")
+            robot = self.devices.robot if self.devices is not None else None
+            if robot is None:
+                return None
+            holder = lock_holder(self.record.data_dir)
+            if holder is not None:
+                raise SessionLockError(str(self.record.data_dir / "station.lock"), holder)
+            robot.connect()
+            try:
+                status, position, identity = robot.status(), robot.where(), robot.identity()
+            finally:
+                robot.close()
+        reference = self.devices.reference_joints_deg
+        return {
+            "identity": asdict(identity),
+            "power": status.power,
+            "homed": status.homed,
+            "joints_deg": list(position.joints_deg),
+            "commanded_joints_deg": list(position.commanded_joints_deg),
+            "reference_joints_deg": list(reference) if reference is not None else None,
+        }
 
     def rpc_call(self, fn: Callable[..., Any], args: tuple[Any, ...]) -> Any:
         """``fn(host, *args)`` in the worker: tests and benchmarks reach a simulated station's truth."""
