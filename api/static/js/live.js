@@ -93,7 +93,7 @@ export function sessionChanged() {
 /** Between sessions, every few seconds: the camera now. */
 export function idleTick(force = false) {
   const s = page.station;
-  if (!canRead() || page.connection !== "ok" || page.running || page.starting || !s) return;
+  if (!canRead() || page.connection !== "ok" || page.running || page.starting || page.actions || !s) return;
   if (!s.devices || !s.devices.camera || (s.worker && s.worker.alive === false)) return;
   if (document.visibilityState !== "visible") return;
   const now = Date.now();

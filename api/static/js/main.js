@@ -13,7 +13,7 @@ import { setUpResults, showResults } from "./results.js";
 import { renderState, say, setUpSession, showSession, tick, updateControls } from "./session.js";
 import { canRead, page } from "./state.js";
 import { setUpStation, showDevices, showRobot, updateRobotControls } from "./station.js";
-import { $ } from "./util.js";
+import { $, FINAL } from "./util.js";
 
 const POLL_MS = 2000;
 const ACCESS_POLL_MS = 5000;
@@ -69,6 +69,8 @@ async function refresh() {
     return;
   }
   refreshing = true;
+  const epoch = page.epoch;
+  const fresh = () => page.epoch === epoch && page.actions === 0;
   try {
     const station = await api("GET", "/station");
     page.station = station;
@@ -87,10 +89,16 @@ async function refresh() {
     renderHistory(list.items);
     let s = null;
     if (page.current) s = list.items.find((x) => x.id === page.current) || (await api("GET", `/sessions/${page.current}`));
+    // the station was read first: a session that ended between the two reads is not running any more
+    if (s && FINAL.has(s.state) && page.running === s.id) {
+      page.running = null;
+      sessionChanged();
+    }
     showSession(s);
     showPrompt(await api("GET", "/prompt"));
-    await showResults(s);
-    idleTick();
+    await showResults(s, fresh);
+    if (fresh()) idleTick();
+    else again = true;
   } catch (e) {
     if (!(e instanceof Unreachable)) say(e.message);
   } finally {

@@ -49,8 +49,10 @@ function links(s) {
   return out.map(([href, text]) => el("a", { href, target: "_blank", rel: "noopener" }, text));
 }
 
-/** Show the session's results when it has ended (hide the panel while it runs). */
-export async function showResults(s) {
+/** Show the session's results when it has ended (hide the panel while it runs). `fresh()` says whether
+ * the reading `s` comes from is still current (no action answered since): only then are its figures
+ * asked for (a session resumed meanwhile has no report until it ends again). */
+export async function showResults(s, fresh = () => true) {
   const section = $("results-section");
   if (!s || !FINAL.has(s.state)) {
     section.hidden = true;
@@ -70,6 +72,10 @@ export async function showResults(s) {
   $("results").replaceChildren(...(Object.keys(r).length ? resultTables(s.kind, r, s.params) : []));
   $("report-links").replaceChildren(...links(s).flatMap((a) => [a, " "]));
   $("figures").replaceChildren();
+  if (!fresh()) {
+    shownKey = null; // shown again from the next reading
+    return;
+  }
   try {
     const figs = await api("GET", `/sessions/${s.id}/figures`);
     if (shownKey !== key) return;

@@ -98,7 +98,9 @@ export function updateControls() {
   else if (!page.access?.authenticated) note = "Read-only: log in with the URL that station serve prints to control the station.";
   else if (RESUMABLE.has(state) && page.running) note = `Resume is possible once session ${page.running} has ended.`;
   else if (RESUMABLE.has(state)) note = "Resume continues this session after its last completed step.";
-  else if (state === "awaiting_operator") note = "Pause and Stop take effect once the operator has answered; Abort stops now.";
+  else if (state === "awaiting_operator") {
+    note = "Pause and Stop take effect at the end of this step, once its prompts are answered; Abort stops now.";
+  }
   else if (other) note = `Session ${page.running} is running.`;
   $("control-note").textContent = note;
   $("start").title = page.running ? `session ${page.running} is running` : "";
@@ -117,14 +119,29 @@ async function act(action) {
   await send(s.id, action);
 }
 
+/** Run an action that may change what the station does; readings taken meanwhile are stale. */
+export async function acting(fn) {
+  page.actions += 1;
+  page.epoch += 1;
+  try {
+    return await fn();
+  } finally {
+    page.actions -= 1;
+    page.epoch += 1;
+  }
+}
+
 async function send(id, action) {
   $(action).disabled = true;
-  try {
-    await api("POST", `/sessions/${id}/actions`, { action });
-    say("");
-  } catch (e) {
-    say(e.message);
-  }
+  await acting(async () => {
+    try {
+      const s = await api("POST", `/sessions/${id}/actions`, { action });
+      if (action === "resume" && !FINAL.has(s.state)) page.running = s.id; // a resumed ended session runs
+      say("");
+    } catch (e) {
+      say(e.message);
+    }
+  });
   refresh();
 }
 
@@ -135,17 +152,19 @@ async function start(ev) {
   page.starting = true;
   updateControls();
   $("start-error").textContent = "";
-  try {
-    const s = await api("POST", "/sessions", { kind: $("kind").value, params });
-    page.current = s.id;
-    page.running = s.id;
-    page.chosen = false;
-    say("");
-  } catch (e) {
-    showRefusal(e);
-  } finally {
-    page.starting = false;
-  }
+  await acting(async () => {
+    try {
+      const s = await api("POST", "/sessions", { kind: $("kind").value, params });
+      page.current = s.id;
+      page.running = s.id;
+      page.chosen = false;
+      say("");
+    } catch (e) {
+      showRefusal(e);
+    } finally {
+      page.starting = false;
+    }
+  });
   refresh();
 }
 

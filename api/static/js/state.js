@@ -20,6 +20,10 @@ export const page = {
   history: [],
   /** Set from the click on Start until the service has answered: the camera is not asked meanwhile. */
   starting: false,
+  /** Actions (start, pause, resume ...) in flight, and a count that changes with each: a reading taken
+   * before an action answered may be stale, and nothing that a stale reading suggests is asked for. */
+  actions: 0,
+  epoch: 0,
 };
 
 /** Whether this client may act (it holds the token) and the service answers. */

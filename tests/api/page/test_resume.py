@@ -1,0 +1,67 @@
+"""Rows 3 and 6 of issue 20: an aborted repeatability is resumed from the page (Resume was disabled for
+``failed``, ``stopped`` and ``aborted`` although the API resumes them), and its step count continues
+from where it stopped instead of restarting at 0."""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+import pytest
+
+from tests.api.conftest import ServeFactory
+from tests.api.page.conftest import FINAL, api, open_page, start_from_form
+
+CYCLES = 40
+
+
+def counts(text: str | None) -> tuple[int, int]:
+    found = re.match(r"(\d+) / (\d+) steps", text or "")
+    assert found, text
+    return int(found.group(1)), int(found.group(2))
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(300)
+def test_an_aborted_repeatability_is_resumed_from_the_page_and_continues_its_count(
+    make_served: ServeFactory, browser: Any
+) -> None:
+    served = make_served()
+    visit = open_page(browser, served.base)
+    page = visit.page
+    sid = start_from_form(visit, "repeatability", {"cycles": CYCLES, "joints": [1], "warmup_cycles": 0})
+    page.wait_for_function("document.querySelector('#progress').value >= 3")
+    page.click("#abort")
+    assert "The arm stops now" in (page.inner_text("#abort-confirm") or "")
+    page.click("#abort-yes")
+    assert visit.wait_state(*FINAL) == "aborted"
+    done, total = counts(page.text_content("#progress-text"))
+    assert 3 <= done < total == 1 + CYCLES
+    page.wait_for_function("!document.querySelector('#resume').disabled")
+    # an operator looks at what it measured first (its partial results and figures)
+    page.wait_for_selector("#results-state")
+    assert "Its results below are partial" in (page.text_content("#results-state") or "")
+    page.wait_for_function("document.querySelectorAll('#figures img').length > 0")
+    assert "Resume continues this session" in (page.text_content("#control-note") or "")
+
+    page.click("#resume")
+    # the same session runs again, its count going on from where it stopped
+    page.wait_for_function(
+        "['running', 'succeeded'].includes(document.querySelector('#state').dataset.state)"
+    )
+    assert page.text_content("#session-id") == sid
+    again, total_again = counts(page.text_content("#progress-text"))
+    assert again >= done
+    assert total_again == total
+    assert visit.wait_state(*FINAL) == "succeeded", page.text_content("#session-error")
+    assert counts(page.text_content("#progress-text")) == (total, total)
+    with api(served.base) as c:
+        doc = c.get(f"/api/v1/sessions/{sid}").json()
+    assert doc["state"] == "succeeded"
+    assert doc["progress"]["done"] == doc["progress"]["total"] == total
+    page.wait_for_selector("#tests-table")
+    row = page.text_content("#tests-table tbody tr") or ""
+    assert row.startswith("J1")
+    assert str(doc["results"]["tests"]["J1"]["n_cycles"]) in row
+    assert visit.failed == []
+    assert visit.console_errors == []
