@@ -12,7 +12,7 @@ from station.reporting._model import RepeatabilityTest
 
 
 def _test(joint: int, rng: np.random.Generator) -> RepeatabilityTest:
-    points = rng.normal(0.0, 0.005, (30, 2)) + [0.01, 0.27]
+    points = rng.normal(0.0, 0.005, (30, 2)) + np.array([0.01, 0.27])
     return RepeatabilityTest(
         kind="joint",
         joint=joint,
@@ -44,10 +44,10 @@ def test_repeatability_figure_fits_every_label_for_any_number_of_tests(n: int) -
     title = next(t for t in fig.texts if t.get_text().startswith("Joint tests")).get_window_extent(renderer)
     for what, box in [*panels, ("legend", legend), ("suptitle", title)]:
         assert box is not None
-        assert frame.x0 - 0.5 <= box.x0 and box.x1 <= frame.x1 + 0.5, (
-            f"{what!r} is cut off at the side: {box}"
-        )
-        assert frame.y0 - 0.5 <= box.y0 and box.y1 <= frame.y1 + 0.5, f"{what!r} is cut off: {box}"
+        assert frame.x0 - 0.5 <= box.x0, f"{what!r} is cut off at the left: {box}"
+        assert box.x1 <= frame.x1 + 0.5, f"{what!r} is cut off at the right: {box}"
+        assert frame.y0 - 0.5 <= box.y0, f"{what!r} is cut off at the bottom: {box}"
+        assert box.y1 <= frame.y1 + 0.5, f"{what!r} is cut off at the top: {box}"
     for what, box in panels:
         assert box is not None
         assert not box.overlaps(legend), f"the legend covers panel {what!r}"

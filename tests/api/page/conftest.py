@@ -63,12 +63,20 @@ class Visit:
 
     def watch(self) -> Visit:
         context = self.page.context
-        context.on("console", lambda m: m.type == "error" and self.console_errors.append(m.text))
+        context.on("console", self._console)
         context.on("weberror", lambda e: self.console_errors.append(f"uncaught: {e.error}"))
         context.on("requestfailed", lambda r: self.failed.append(f"{r.method} {r.url}: {r.failure}"))
         context.on("request", lambda r: self.requests.append(f"{r.method} {r.url}"))
-        context.on("response", lambda r: r.status >= 400 and self.failed.append(f"{r.status} {r.url}"))
+        context.on("response", self._response)
         return self
+
+    def _console(self, message: Any) -> None:
+        if message.type == "error":
+            self.console_errors.append(message.text)
+
+    def _response(self, response: Any) -> None:
+        if response.status >= 400:
+            self.failed.append(f"{response.status} {response.url}")
 
     def state(self) -> str:
         return str(self.page.get_attribute("#state", "data-state"))
