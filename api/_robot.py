@@ -113,6 +113,7 @@ class RobotMirror:
             **(latest or {}),
         }
         doc.pop("identity", None)
+        in_use = busy or held
         if busy:
             state = "in_session"
         elif held:
@@ -125,12 +126,9 @@ class RobotMirror:
             doc.update(power=None, homed=None, joints_deg=None, commanded_joints_deg=None)
         else:
             state = "idle"
-        doc.update(
-            state=state,
-            at_reference=at_reference(doc["commanded_joints_deg"], doc["reference_joints_deg"]),
-            read_at=read_at,
-            error=error,
-        )
+        # while a session moves the arm, whether it is at its reference pose is not known here
+        at_ref = None if in_use else at_reference(doc["commanded_joints_deg"], doc["reference_joints_deg"])
+        doc.update(state=state, at_reference=at_ref, read_at=read_at, error=error)
         return doc
 
     def identity(self) -> dict[str, Any] | None:

@@ -114,6 +114,7 @@ class StationService:
         self.config: StationConfig | None = load_config(settings.config) if settings.config else None
         self.record: Record = open_record(settings.data, settings.database, self.config)
         self._lock = threading.RLock()
+        self._report_lock = threading.Lock()
         self._listeners: list[Callable[[EventRow], None]] = []
         self._closed = False
         # the read caches (see the module's docstring): ``_generation`` counts the runner's state changes,
@@ -524,9 +525,12 @@ class StationService:
             raise ConflictError(f"session {row.id} is {row.state}: its report is written once it has ended")
         folder = self.record.data_dir / "reports" / row.id
         stamp = folder / ".written"
-        if not stamp.exists() or stamp.read_text() != row.updated_at.isoformat():
-            write_report(report_document(row), folder)
-            stamp.write_text(row.updated_at.isoformat())
+        # one writer at a time: two pages asking for a new report at once wrote the same temporary files
+        # and one of them failed (500); the second finds the report written
+        with self._report_lock:
+            if not stamp.exists() or stamp.read_text() != row.updated_at.isoformat():
+                write_report(report_document(row), folder)
+                stamp.write_text(row.updated_at.isoformat())
         return folder
 
     def export_zip(self, session_id: str) -> bytes:

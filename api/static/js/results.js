@@ -28,8 +28,10 @@ function status(s) {
 
 function figureButton(sid, name) {
   const src = `${API}/sessions/${sid}/figures/${encodeURIComponent(name)}`;
-  const img = el("img", { src, alt: `figure ${name}`, loading: "lazy" });
+  const img = el("img", { src, alt: `figure ${name}` });
   const button = el("button", { type: "button", className: "figure", title: "open full size" }, img, el("span", {}, name));
+  // a wide figure (a grid of panels) takes two columns where there are two
+  img.addEventListener("load", () => button.classList.toggle("wide", img.naturalWidth > 1.6 * img.naturalHeight));
   button.addEventListener("click", () => openFigure(src, name));
   return button;
 }
@@ -72,6 +74,7 @@ export async function showResults(s, fresh = () => true) {
   $("results").replaceChildren(...(Object.keys(r).length ? resultTables(s.kind, r, s.params) : []));
   $("report-links").replaceChildren(...links(s).flatMap((a) => [a, " "]));
   $("figures").replaceChildren();
+  delete $("figures").dataset.loaded;
   if (!fresh()) {
     shownKey = null; // shown again from the next reading
     return;
@@ -84,6 +87,7 @@ export async function showResults(s, fresh = () => true) {
   } catch (e) {
     $("figures").replaceChildren(el("p", { className: "error" }, `figures: ${e.message}`));
   }
+  $("figures").dataset.loaded = key;
 }
 
 export function setUpResults() {

@@ -25,11 +25,11 @@ function stateText(r, s) {
   if (r.state === "reading") return `${model}: reading its state…`;
   if (r.state === "unreachable") return `${model}: unreachable (${r.error}); check its cable and power`;
   if (r.state === "busy") return `${model}: another process's session holds the station (${r.error}); pose as last read`;
+  if (r.state === "in_session") return `${model}: in a session, moving as its plan says; its pose is read again when it ends`;
   const facts = [onOff(r.power, "power on", "power off"), onOff(r.homed, "homed", "not homed")];
   if (r.at_reference === true) facts.push("at the reference pose");
   else if (r.at_reference === false) facts.push("not at the reference pose");
-  const now = r.state === "in_session" ? "in a session (pose as last read before it)" : "idle";
-  return `${model}: ${now}, ${facts.join(", ")}`;
+  return `${model}: idle, ${facts.join(", ")}`;
 }
 
 export function showRobot(s) {
@@ -41,8 +41,9 @@ export function showRobot(s) {
   section.dataset.atReference = String(r.at_reference);
   $("robot-state").textContent = stateText(r, s);
   const read = r.read_at ? ` (read ${clock(new Date(r.read_at))})` : "";
+  const before = r.state === "in_session" || r.state === "busy" ? "before the session: " : "";
   $("robot-pose").textContent = r.commanded_joints_deg
-    ? `joints ${joints(r.joints_deg)}°${read}; reference ${joints(r.reference_joints_deg)}°`
+    ? `${before}joints ${joints(r.joints_deg)}°${read}; reference ${joints(r.reference_joints_deg)}°`
     : "";
   updateRobotControls();
 }
