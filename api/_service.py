@@ -459,6 +459,10 @@ class StationService:
                 # sees the prompt it raised finds the session awaiting the operator; a final state comes
                 # from the record, with its error
                 row = dataclasses.replace(row, state=str(state))
+            if status.progress.total == 0 and status.state not in FINAL_STATES:
+                # a run that has not counted its steps yet (a resumed one, before pre-flight): what the
+                # record holds, so that its count goes on from where it stopped
+                return SessionView(row, self._recorded.of(row))
             return SessionView(row, status.progress)
         return SessionView(row, self._recorded.of(row))
 

@@ -97,8 +97,7 @@ async function refresh() {
     showSession(s);
     showPrompt(await api("GET", "/prompt"));
     await showResults(s, fresh);
-    if (fresh()) idleTick();
-    else again = true;
+    if (fresh()) idleTick(); // else the action that made this reading stale reads again once it has answered
   } catch (e) {
     if (!(e instanceof Unreachable)) say(e.message);
   } finally {

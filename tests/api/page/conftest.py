@@ -36,8 +36,10 @@ FINAL = ("succeeded", "failed", "aborted", "stopped", "interrupted")
 PATTERN = [[0.0, 0.0], [254.0, 0.0], [254.0, 254.0], [0.0, 254.0]]
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture
 def browser() -> Iterator[Any]:
+    """Chromium for one test (Playwright's sync API runs one instance at a time per process, and
+    ``tests/api/test_browser.py`` has its own)."""
     try:
         from playwright.sync_api import sync_playwright
     except ImportError:

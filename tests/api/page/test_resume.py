@@ -47,7 +47,9 @@ def test_an_aborted_repeatability_is_resumed_from_the_page_and_continues_its_cou
     page.click("#resume")
     # the same session runs again, its count going on from where it stopped
     page.wait_for_function(
-        "['running', 'succeeded'].includes(document.querySelector('#state').dataset.state)"
+        """sid => document.querySelector('#session-id').textContent === sid
+            && ['running', 'succeeded'].includes(document.querySelector('#state').dataset.state)""",
+        arg=sid,
     )
     assert page.text_content("#session-id") == sid
     again, total_again = counts(page.text_content("#progress-text"))
