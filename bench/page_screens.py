@@ -176,6 +176,8 @@ def main() -> None:
                 top()
                 shot("running")
                 c.post(f"/api/v1/sessions/{running.json()['id']}/actions", json={"action": "abort"})
+                while c.get("/api/v1/station").json()["session"] is not None:
+                    time.sleep(0.1)
 
                 # the calibration last: it leaves the arm away from its reference pose
                 sessions["calibration"] = run(c, "calibration", SMALL_CALIBRATION)

@@ -37,7 +37,7 @@ function repeatability(r, params) {
   const planned = params?.plan?.cycles;
   const tests = Object.entries(r.tests || {});
   const body = tests.map(([name, t]) => {
-    if (t.error) return [name, "—", "—", "not computed", t.error, "—", "—"];
+    if (t.error) return [name, "—", "—", `not computed: ${t.error}`, "—", "—", "—"];
     const n = typeof planned === "number" && (t.partial || t.n_cycles < planned) ? `${num(t.n_cycles)} of ${num(planned)} (partial)` : num(t.n_cycles);
     const ci = Array.isArray(t.rp_ci95_mm) ? `${num(t.rp_ci95_mm[0], 5)} – ${num(t.rp_ci95_mm[1], 5)}` : "—";
     const motion = t.kind === "joint" ? `joint ${num(t.joint)}${typeof t.delta_deg === "number" ? `, ${t.delta_deg > 0 ? "+" : ""}${num(t.delta_deg, 1)}°` : ""}` : `${t.kind}${Array.isArray(t.targets_deg) ? `, ${t.targets_deg.length} targets` : ""}`;
