@@ -2,7 +2,7 @@
 start, not only once a session has connected it.
 
 The station worker owns the robot; between sessions it is closed. :class:`RobotMirror` asks the worker
-to read it (``SessionHost.rpc_robot``: connect, status and position, close; nothing moves) in a thread
+to read it (``SessionHost.rpc_robot_state``: connect, status and position, close; nothing moves) in a thread
 of its own, so that a read of ``/station`` never waits for the serial line: when the service starts,
 when a session ends, and when the latest read is older than :data:`MAX_AGE_S` while no session runs
 (someone may have jogged the arm at its pendant). While a session runs the robot is the session's: the

@@ -145,9 +145,9 @@ class StationService:
             raise
         self._identities: dict[str, Any] = dict(self.worker.info.identities)
         self._recorded = RecordedProgress(self.record)
-        self.robot = RobotMirror(lambda: self.worker.call("robot", timeout_s=60))
+        self.robot_state = RobotMirror(lambda: self.worker.call("robot_state", timeout_s=60))
         """The robot's state and pose (read by the worker between sessions, see ``api/_robot.py``)."""
-        self.robot.refresh()
+        self.robot_state.refresh()
 
     def in_worker(self, fn: Callable[..., Any], *args: Any) -> Any:
         """``fn(host, *args)`` in the station's worker process, its value returned here (``fn`` and the
@@ -207,7 +207,7 @@ class StationService:
         elif event.type == "state":
             self._generation += 1
             if event.data.get("state") in FINAL_STATES:
-                self.robot.refresh()  # a thread of its own: this reader thread delivers the answer
+                self.robot_state.refresh()  # a thread of its own: this reader thread delivers the answer
         recent = self._recent
         if recent and recent[-1].session_id != event.session_id:
             recent.clear()
@@ -272,7 +272,7 @@ class StationService:
             runner.session_id if runner else None,
             runner.state if runner else None,
             id(self._identities),
-            self.robot.generation,
+            self.robot_state.generation,
         )
         cached = self._station_cache
         now = time.monotonic()
@@ -285,7 +285,7 @@ class StationService:
     def _station(self, runner: RunnerStatus | None) -> dict[str, Any]:
         info = self.worker.info
         busy = runner is not None
-        robot = self.robot.doc(busy=busy) if "robot" in info.devices else None
+        robot = self.robot_state.doc(busy=busy) if "robot" in info.devices else None
         devices: dict[str, Any] = {
             name: {"identity": self._identities.get(name, {}), "state": "in_session" if busy else "idle"}
             for name in info.devices
@@ -294,7 +294,7 @@ class StationService:
             # its identity as the latest read gave it (the worker reads it at start: never "?" until the
             # first session), its state as that read found it
             devices["robot"] = {
-                "identity": {**devices["robot"]["identity"], **(self.robot.identity() or {})},
+                "identity": {**devices["robot"]["identity"], **(self.robot_state.identity() or {})},
                 "state": robot["state"],
             }
         holder = lock_holder(self.record.data_dir)

@@ -435,7 +435,7 @@ class SessionHost:
             finally:
                 camera.close()
 
-    def rpc_robot(self) -> dict[str, Any] | None:
+    def rpc_robot_state(self) -> dict[str, Any] | None:
         """The robot read now: identity, power, homed, attained and commanded joints (deg) and the
         configured reference pose; None without a robot. It is connected for the read and closed again
         (reads only: nothing moves). ConflictError while a session owns it."""

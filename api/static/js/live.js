@@ -40,6 +40,16 @@ export function showNumbers(m, where) {
   dl.replaceChildren(...rows.flatMap(([k, v]) => [el("dt", {}, k), el("dd", {}, v)]));
 }
 
+/** The picture's measurement from its response headers: the numbers (X-Measurement, JSON), else the
+ * verdict alone (X-Measurement-Ok, -Code, -Error); null without either. */
+function measurementOf(headers) {
+  const doc = headers.get("X-Measurement");
+  if (doc) return JSON.parse(doc);
+  const ok = headers.get("X-Measurement-Ok");
+  if (ok === null) return null;
+  return { ok: ok === "true", code: headers.get("X-Measurement-Code"), error: headers.get("X-Measurement-Error") };
+}
+
 async function load(job) {
   if (inflight) {
     queued = job;
@@ -54,10 +64,7 @@ async function load(job) {
     shownUrl = url;
     $("live-caption").textContent = job.caption;
     let numbers = job.measurement;
-    if (!numbers) {
-      const header = headers.get("X-Measurement");
-      numbers = header ? JSON.parse(header) : null;
-    }
+    if (!numbers) numbers = measurementOf(headers);
     showNumbers(numbers, job.where);
   } catch (e) {
     // a session took the camera meanwhile, or the service went away: say so, keep the last picture
