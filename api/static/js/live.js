@@ -60,6 +60,7 @@ async function load(job) {
     const { url, headers } = await image(job.path);
     const img = $("live");
     img.src = url;
+    img.classList.remove("stale");
     if (shownUrl) URL.revokeObjectURL(shownUrl);
     shownUrl = url;
     $("live-caption").textContent = job.caption;
@@ -93,6 +94,7 @@ export function sessionCaptured(sessionId, data) {
 export function sessionChanged() {
   if (page.running && shownSession !== page.running) {
     $("live-caption").textContent = `session ${page.running} is running: its first capture shows here once it is measured`;
+    $("live").classList.add("stale"); // the camera's last picture, from before the session
     showNumbers(null);
   }
 }
