@@ -424,7 +424,7 @@ class World:
         pose = self.pose(T)
         cam = self.spec.camera
         corners = np.array([[0, 0], [cam.width - 1, 0], [0, cam.height - 1], [cam.width - 1, cam.height - 1]])
-        H_inv = np.linalg.inv(homography_for(pose, cam))
+        H_inv = np.asarray(np.linalg.inv(homography_for(pose, cam)), dtype=np.float64)
         half = self.spec.artifact_half_size_mm
         seen = _on_artifact(H_inv, corners.astype(np.float64))
         if np.all(np.abs(seen) <= half):

@@ -141,7 +141,7 @@ def plan_route(start_deg: Sequence[float], target_deg: Sequence[float], *, max_s
     if not (np.isfinite(max_step_deg) and max_step_deg > 0):
         raise ValueError(f"max_step_deg must be a positive number, got {max_step_deg!r}")
     s, t = quantised(start), quantised(target)
-    if at_pose(s, t, 0.0):
+    if at_pose(s, t):  # within 0.01 deg: there already
         return Route(s, t, (), False)
     limit = step_limit(max_step_deg)
     if float(np.max(np.abs(start - target))) <= limit:
@@ -217,6 +217,45 @@ class ToReferenceResult(BaseModel):
     at_reference: bool
 
 
+class RoutePreview(BaseModel):
+    """The route ``to-reference`` would take from where the arm is: its moves (deg), whether through the
+    lift poses, and every problem the robot's checks find in it (empty: it would be sent)."""
+
+    model_config = ConfigDict(frozen=True)
+
+    moves: list[list[float]]
+    via_lift: bool
+    problems: list[str]
+
+
+class ArmStatus(BaseModel):
+    """Where the arm is against its reference pose (``GET /api/v1/station/robot``): ``at_reference`` when
+    every commanded joint is within 0.01 deg of it; ``route``: the way there from here."""
+
+    model_config = ConfigDict(frozen=True)
+
+    position: ArmPose
+    reference_joints_deg: list[float]
+    at_reference: bool
+    route: RoutePreview
+
+
+def robot_status(robot: Robot, reference_deg: Sequence[float], max_step_deg: float) -> ArmStatus:
+    """Read where the (connected) arm is and plan and check its route to ``reference_deg``; no motion."""
+    here = robot.where()
+    route = plan_route(here.commanded_joints_deg, reference_deg, max_step_deg=max_step_deg)
+    return ArmStatus(
+        position=ArmPose.of(here),
+        reference_joints_deg=list(route.target_deg),
+        at_reference=not route.moves,
+        route=RoutePreview(
+            moves=[list(q) for q in route.moves],
+            via_lift=route.via_lift,
+            problems=route_problems(robot, route),
+        ),
+    )
+
+
 def go_to_reference(
     robot: Robot,
     reference_deg: Sequence[float],
@@ -257,7 +296,9 @@ __all__ = [
     "JOINT_DECIMALS",
     "TO_REFERENCE_HINT",
     "ArmPose",
+    "ArmStatus",
     "Route",
+    "RoutePreview",
     "RouteRejectedError",
     "ToReferenceResult",
     "at_pose",
@@ -267,6 +308,7 @@ __all__ = [
     "max_step_of",
     "plan_route",
     "quantised",
+    "robot_status",
     "route_problems",
     "split_move",
     "step_limit",
