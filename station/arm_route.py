@@ -157,10 +157,10 @@ class RouteRejectedError(MotionRejectedError):
     """A move of the route failed the robot's own checks; nothing was sent. ``problems``: every one."""
 
     def __init__(self, problems: Sequence[str]) -> None:
+        shown = "; ".join(problems[:3]) + (f"; and {len(problems) - 3} more" if len(problems) > 3 else "")
         super().__init__(
-            "the route to the reference pose is refused, nothing moved: "
-            + "; ".join(problems)
-            + "; jog the arm clear with the pendant (the route goes up through the lift pose), then try again"
+            f"the route to the reference pose is refused, nothing moved: {shown}; jog the arm clear with the"
+            " pendant (the route goes up through the lift pose), then try again"
         )
         self.problems = list(problems)
 
