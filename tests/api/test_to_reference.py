@@ -90,10 +90,6 @@ def test_after_an_aborted_calibration_sessions_start_at_the_reference_and_to_ref
     with served.client() as c:
         abort_calibration_over_a_bench_artifact(c)
         assert served.service.in_worker(seen_artifact) == 1  # truth: the camera looks at a bench artifact
-        arm = c.get("/api/v1/station/robot").json()
-        assert arm["at_reference"] is False
-        assert arm["route"]["via_lift"] is True
-        assert arm["route"]["problems"] == []
 
         # a validation never moves the arm: refused at pre-flight, saying what to do; nothing written
         r = c.post("/api/v1/sessions", json=VALIDATION)
@@ -103,6 +99,10 @@ def test_after_an_aborted_calibration_sessions_start_at_the_reference_and_to_ref
         assert "not at its reference pose" in problem
         assert "to-reference" in problem
         assert not scale_file.exists()
+        arm = c.get("/api/v1/station/robot").json()
+        assert arm["at_reference"] is False
+        assert arm["route"]["via_lift"] is True
+        assert arm["route"]["problems"] == []
 
         # a repeatability starts at the reference: its first motion is the route there
         r = c.post("/api/v1/sessions", json=REPEATABILITY)
