@@ -591,7 +591,8 @@ class SessionRunner:
         try:
             start = tuple(robot.where().commanded_joints_deg)
         except DeviceError as exc:  # pre-flight says so too when the plan moves the arm
-            return [], [] if pose.route else [f"the robot cannot be read: {exc}"]
+            why = f"the robot cannot be read (a {self.plan.name} needs the arm at its reference pose): {exc}"
+            return [], [] if pose.route else [why]
         safety = devices.config.robot.safety if devices.config.robot is not None else None
         route = plan_route(start, pose.joints_deg, max_step_deg=max_step_of(safety))
         if not route.moves:
