@@ -97,9 +97,10 @@ class WorldSpec:
     true_dh: tuple[DHRow, ...] | None = None
     """The arm's true DH table; None: the nominal table plus errors drawn with ``dh_error_seed``."""
     dh_error_seed: int = 0
-    artifact_half_size_mm: float = 10.0
-    """Half the side of each artifact's block (the seed's grooves are about 20 mm long): what the camera
-    sees beyond it is the background."""
+    artifact_half_size_mm: float = 50.0
+    """Half the side of each artifact's top plate (its grooves run across it): the camera sees the
+    background beyond it, and the distance sensor twin's beam misses it there (the sensor, 30 mm beside
+    the optical axis, reads the plate while the camera looks at the crossing)."""
     background_dn: float = 60.0
     """Grey level of what lies around the artifacts (bench, table top; far out of focus), DN."""
 
@@ -388,8 +389,8 @@ class World:
     ) -> tuple[npt.NDArray[np.uint8], Truth | None]:
         """What the camera sees now, with the truth of that frame: a frame at every pose, as a camera gives.
 
-        The artifact nearest the optical axis where its block is in view (its part outside the block
-        replaced by the background); the background alone, with truth ``None``, where no block is in view
+        The artifact nearest the optical axis where its plate is in view (what lies beyond the plate
+        replaced by the background); the background alone, with truth ``None``, where no plate is in view
         or the one seen faces away from the camera or at a grazing angle (tilted 45 deg or more, beyond
         the renderer's model; its image would be out of focus over most of the field anyway).
         """
@@ -415,8 +416,8 @@ class World:
         return image, truth
 
     def _view(self, artifact_in_camera: FloatArray) -> tuple[Pose, npt.NDArray[np.bool_] | None] | None:
-        """The renderer's pose of an artifact (4x4 in the camera frame) and the pixels outside its block
-        (``None``: the whole frame is on it), or ``None`` when no part of its block is in view."""
+        """The renderer's pose of an artifact (4x4 in the camera frame) and the pixels outside its plate
+        (``None``: the whole frame is on it), or ``None`` when no part of its plate is in view."""
         T = artifact_in_camera
         a, b, _ = euler_xyz(T[:3, :3])
         if abs(a) >= 45.0 or abs(b) >= 45.0 or T[2, 3] <= 1.0:  # grazing, facing away, or at the lens
@@ -428,9 +429,9 @@ class World:
         half = self.spec.artifact_half_size_mm
         seen = _on_artifact(H_inv, corners.astype(np.float64))
         if np.all(np.abs(seen) <= half):
-            return pose, None  # the footprint of the frame is convex: all of it is on the block
+            return pose, None  # the footprint of the frame is convex: all of it is on the plate
         if np.any(np.all(seen > half, axis=0)) or np.any(np.all(seen < -half, axis=0)):
-            return None  # the whole footprint beyond one side of the block
+            return None  # the whole footprint beyond one side of the plate
         ys, xs = np.mgrid[0 : cam.height, 0 : cam.width]
         uv = _on_artifact(H_inv, np.column_stack([xs.ravel(), ys.ravel()]).astype(np.float64))
         outside = np.any(np.abs(uv) > half, axis=1).reshape(cam.height, cam.width)

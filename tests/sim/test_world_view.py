@@ -1,4 +1,4 @@
-"""The simulated camera gives a frame at every pose, as a real one does: the artifact where its block is in
+"""The simulated camera gives a frame at every pose, as a real one does: the artifact where its plate is in
 view, the background elsewhere; only the measurement refuses a frame without a crossing."""
 
 from __future__ import annotations
@@ -44,6 +44,18 @@ def test_a_pose_that_sees_no_artifact_gives_a_background_frame_the_measurement_r
         measure(image)
 
 
+def test_every_pose_within_the_joint_limits_gives_a_frame() -> None:
+    world = World()
+    rng = np.random.default_rng(19)
+    limits = world.kinematics.joint_limits_deg
+    for _ in range(40):
+        joints = [float(v) for v in rng.uniform(limits[:, 0], limits[:, 1])]
+        seen = World(joints=joints.copy)
+        image, _ = seen.render(rng)
+        assert image.shape == (480, 640)
+        assert image.dtype == np.uint8
+
+
 def test_the_artifact_is_still_rendered_and_measured_where_it_is_in_view() -> None:
     world = World(joints=lambda: REFERENCE_JOINTS_DEG)
     image, truth = world.render(np.random.default_rng(0))
@@ -52,16 +64,16 @@ def test_the_artifact_is_still_rendered_and_measured_where_it_is_in_view() -> No
     assert np.hypot(*(np.array(m.center_px) - np.array(truth.center_px))) < 0.05
 
 
-def test_beyond_the_artifacts_block_the_camera_sees_the_background() -> None:
-    """The table moved 9.5 mm: the block's edge (10 mm from the crossing) crosses the frame; one groove
+def test_beyond_the_artifacts_plate_the_camera_sees_the_background() -> None:
+    """The table moved 49.5 mm: the plate's edge (50 mm from the crossing) crosses the frame; one groove
     runs up to it, the far side is the background; the crossing is out of view, so no measurement."""
     world = World(joints=lambda: REFERENCE_JOINTS_DEG)
-    world.set_table_readings(9.5, 0.0)
+    world.set_table_readings(world.spec.artifact_half_size_mm - 0.5, 0.0)
     image, truth = world.render(np.random.default_rng(0))
     assert truth is not None  # part of the artifact is in view
     side = np.array_split(image, 2, axis=1)
     levels = sorted(float(np.median(half)) for half in side)
-    assert abs(levels[0] - world.spec.background_dn) < 5.0  # the background beside the block
-    assert levels[1] > 150.0  # the lands of the block
+    assert abs(levels[0] - world.spec.background_dn) < 5.0  # the background beside the plate
+    assert levels[1] > 150.0  # the lands of the plate
     with pytest.raises(MeasurementError):
         measure(image)
