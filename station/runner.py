@@ -9,8 +9,12 @@ States (``RunnerState``)::
             any active state -> failed | succeeded
     a session whose process died shows ``interrupted`` (found when the next runner takes the lock)
 
+* Every session (and every resume) starts at its plan's reference pose: when the arm is elsewhere, its
+  first step is the arm's route there from where it is commanded (``station.arm_route``), checked in
+  pre-flight with everything else; a plan that never moves the arm (validation) is refused instead.
 * **Pause** takes effect at the next safe point (between steps); **resume** continues.
-* **Stop** finishes the step in progress, returns the arm to the reference pose, closes the devices.
+* **Stop** finishes the step in progress, returns the arm to the reference pose (along the same route),
+  closes the devices.
 * **Abort** stops the robot now through its latched stop, cancels the open operator prompt, and moves
   nothing more; the latch stays set on the driver.
 * A device error fails the session: the robot is stopped, its position read again and recorded, and
