@@ -153,6 +153,8 @@ def test_after_an_aborted_calibration_sessions_start_at_the_reference_and_to_ref
         for p in results["positions"]:
             assert abs(np.hypot(*p["measured_um"]) - np.hypot(*p["commanded_um"])) < 3.0
         assert results["max_um"] < 3.0
+        latest = c.get(f"/api/v1/sessions/{val['id']}/latest.png")
+        assert (latest.status_code, latest.headers["x-measurement-ok"]) == (200, "true")
         while not scale_file.exists():  # the worker writes it once the session has ended (a hang fails)
             time.sleep(0.02)
 
@@ -187,6 +189,8 @@ def test_a_snapshot_where_the_camera_sees_no_artifact_is_a_frame_with_the_measur
         image = cv2.imdecode(np.frombuffer(r.content, np.uint8), cv2.IMREAD_UNCHANGED)
         assert image is not None
         assert image.shape[:2] == (480, 640)
+        bottom = image[-40:].reshape(-1, 3).astype(int)  # the refusal written under the frame, in red
+        assert np.any((bottom[:, 2] > 200) & (bottom[:, 1] < 150))
         plain = c.get("/api/v1/camera/snapshot.png")  # no overlay: the frame alone, nothing measured
         assert plain.status_code == 200
         assert "x-measurement-ok" not in plain.headers
