@@ -10,10 +10,16 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel
 
+from drivers.crs_a465 import MotionGuard, SafetyLimits
+from sim.station import sim_safety, taught_artifacts_mm, taught_normals, taught_turns_deg
+from sim.world import World
+from station.kinematics import Kinematics
 from station.plans import CaptureResult, MoveJoints, PlanContext, ReferencePose, Step, get_plan, parse_params
+from station.plans.calibration import CALIBRATION, CalibrationCell, CalibrationParams
 from station.record import Record
 from station.runner import RunnerState, SessionRunner
 from station.testing import FakeRobot, FakeStation
+from station.vision import MeasureParams
 from tests.sessions.conftest import EventLog, results_of, sid_of
 
 REF = (0.0, 30.0, 60.0, 0.0, 90.0, 0.0)
@@ -146,3 +152,35 @@ def test_a_stop_far_from_the_reference_returns_along_the_route(record: Record, f
     assert route[-1] == list(REF)
     assert tuple(fake.robot.joints) == REF
     assert not log.of("warning")
+
+
+def test_a_resumed_calibration_travels_from_the_reference_to_where_its_next_configuration_starts() -> None:
+    """After the session's route to the reference, the prelude takes the arm to the previous configuration's
+    pose, from which the next configuration's own travel starts: the whole chain passes the driver's
+    limit, step and keep-out checks."""
+    world = World()
+    cell = CalibrationCell(
+        kinematics=Kinematics(tool=world.kinematics.tool),
+        artifacts_mm=tuple(taught_artifacts_mm(world)),
+        artifact_turns_deg=tuple(taught_turns_deg(world)),
+        artifact_normals=tuple(taught_normals(world)),
+        working_distance_mm=68.0,
+        focal_px=6800.0,
+        sensor_mount=np.eye(4),
+        reference_joints_deg=REF,
+    )
+    ctx = PlanContext(measure_params=MeasureParams(), reference_joints_deg=REF, calibration=cell)
+    params = CalibrationParams(placements=[1, 2], turns_deg=[-20.0, 70.0], solutions=2)
+    steps = list(CALIBRATION.steps(params, ctx))
+    configs = CALIBRATION.configurations(params, cell)
+    guard = MotionGuard(SafetyLimits(**sim_safety(world)))
+    assert CALIBRATION.resume_prelude(params, ctx, steps[0]) == []  # the first travels from the reference
+    for k in (1, 2, len(steps) - 1):
+        (prelude,) = CALIBRATION.resume_prelude(params, ctx, steps[k])
+        to_previous = [a.target_deg for a in prelude.actions if isinstance(a, MoveJoints)]
+        assert to_previous[-1] == configs[k - 1].joints_deg
+        own = [a.target_deg for a in steps[k].actions if isinstance(a, MoveJoints)]
+        here = np.array(REF)
+        for q in [*to_previous, *own]:
+            guard.plan_single_joint_moves(here, [(i + 1, float(d)) for i, d in enumerate(np.array(q) - here)])
+            here = np.array(q)
