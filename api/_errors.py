@@ -16,7 +16,9 @@ from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from api._service import ConflictError, ImportArchiveError, NotAvailableError, WorkerError
+from station.arm_route import RouteRejectedError
 from station.config import ConfigurationError
+from station.devices import DeviceError, MotionRejectedError
 from station.imageio import ImageFileError
 from station.plans import PlanError
 from station.prompts import InvalidAnswerError, PromptBusyError, PromptError, UnknownPromptError
@@ -46,6 +48,9 @@ STATUS_OF: tuple[tuple[type[Exception], int, str], ...] = (
     (PlanError, 422, "invalid_parameters"),
     (ConfigurationError, 422, "configuration_error"),
     (RecordError, 422, "record_error"),
+    (RouteRejectedError, 422, "route_rejected"),
+    (MotionRejectedError, 422, "motion_rejected"),
+    (DeviceError, 502, "device_error"),
 )
 
 TITLES = {
@@ -59,6 +64,7 @@ TITLES = {
     415: "Unsupported media type",
     422: "Unprocessable content",
     500: "Internal server error",
+    502: "Bad gateway",
     503: "Service unavailable",
 }
 
@@ -102,7 +108,7 @@ def install(app: FastAPI) -> None:
         if isinstance(exc, ImageFileError):
             return problem(status, exc.reason, "bad_image")
         extra: dict[str, Any] = {}
-        if isinstance(exc, PreflightError):
+        if isinstance(exc, PreflightError | RouteRejectedError):
             extra["problems"] = exc.problems
         return problem(status, str(exc), code, **extra)
 

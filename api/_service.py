@@ -32,6 +32,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from api._overlay import Picture, overlay_png
+from station.arm_route import ArmStatus, ToReferenceResult
 from station.batch import FileResult
 from station.config import ConfigurationError, StationConfig, load_config
 from station.imageio import ImageFileError, ImageLimits, decode_image
@@ -68,6 +70,8 @@ EVENT_BUFFER = 4096
 """The running session's latest events kept in memory for its event streams."""
 
 ACTIONS = ("pause", "resume", "stop", "abort")
+TO_REFERENCE_S = 600.0
+"""The longest the service waits for the arm's route to its reference pose (a real arm, slow speed)."""
 
 
 @dataclass
@@ -311,14 +315,12 @@ class StationService:
             result = FileResult(name, error=exc.message, code=exc.code)
         return result.to_json()
 
-    def snapshot_png(self, *, overlay: bool = False) -> bytes:
-        """One frame from the camera as PNG (optionally with the measurement drawn); ConflictError while
-        a session owns the camera."""
-        from api._overlay import overlay_png
-
+    def snapshot_png(self, *, overlay: bool = False) -> Picture:
+        """One frame from the camera as PNG (optionally with the measurement drawn, or its refusal);
+        ConflictError while a session owns the camera."""
         image = self.worker.call("grab", timeout_s=60)
         result = self._measure_array(image) if overlay else None
-        return overlay_png(image, result)
+        return Picture(overlay_png(image, result), result)
 
     def _measure_array(self, image: Any) -> dict[str, Any]:
         mp, _ = session_measure_params(self.record, "repeatability", {}, self.config, {})
@@ -327,10 +329,8 @@ class StationService:
         except MeasurementError as exc:
             return {"ok": False, "error": exc.message, "code": exc.code}
 
-    def latest_capture_png(self, session_id: str, *, overlay: bool = True) -> bytes:
+    def latest_capture_png(self, session_id: str, *, overlay: bool = True) -> Picture:
         """The session's latest stored capture with its measurement drawn (the live view in a session)."""
-        from api._overlay import overlay_png
-
         row = self.record.get_session(session_id)
         captures = self.record.captures(row.id)
         if not captures:
@@ -341,7 +341,20 @@ class StationService:
         if overlay:
             found = [m for m in self.record.measurements(row.id) if m.capture_id == cap.id]
             result = found[-1].result if found else None
-        return overlay_png(image, result)
+        return Picture(overlay_png(image, result), result)
+
+    # ------------------------------------------------------------------ the arm outside sessions
+
+    def robot(self) -> ArmStatus:
+        """Where the arm is against its reference pose, and the route there (read in the worker; nothing
+        moves); ConflictError while a session owns the arm."""
+        return ArmStatus.model_validate(self.worker.call("robot", timeout_s=60))
+
+    def to_reference(self) -> ToReferenceResult:
+        """Take the arm to its reference pose along its route (in the worker, which owns the devices);
+        ConflictError while a session runs, RouteRejectedError (nothing moved) when a move fails the
+        driver's checks."""
+        return ToReferenceResult.model_validate(self.worker.call("to_reference", timeout_s=TO_REFERENCE_S))
 
     # ------------------------------------------------------------------ sessions
 

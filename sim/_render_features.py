@@ -106,7 +106,9 @@ def streak_texture(
     idx = num / den
     idx += np.float32(_STREAK_HALF_LENGTH_MM)
     idx *= np.float32(1.0 / _STREAK_STEP_MM)
-    np.clip(idx, 0.0, profile.size - 1.001, out=idx)
+    # below the last sample, in float32 (where size - 1.001 rounds up to size - 1 past 16384 samples):
+    # a point beyond the profile's half length takes its end value instead of indexing past it
+    np.clip(idx, 0.0, np.nextafter(np.float32(profile.size - 1), np.float32(0.0)), out=idx)
     i0 = idx.astype(np.intp)
     frac = idx - i0
     p32 = profile.astype(np.float32)

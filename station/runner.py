@@ -9,8 +9,12 @@ States (``RunnerState``)::
             any active state -> failed | succeeded
     a session whose process died shows ``interrupted`` (found when the next runner takes the lock)
 
+* Every session (and every resume) starts at its plan's reference pose: when the arm is elsewhere, its
+  first step is the arm's route there from where it is commanded (``station.arm_route``), checked in
+  pre-flight with everything else; a plan that never moves the arm (validation) is refused instead.
 * **Pause** takes effect at the next safe point (between steps); **resume** continues.
-* **Stop** finishes the step in progress, returns the arm to the reference pose, closes the devices.
+* **Stop** finishes the step in progress, returns the arm to the reference pose (along the same route),
+  closes the devices.
 * **Abort** stops the robot now through its latched stop, cancels the open operator prompt, and moves
   nothing more; the latch stays set on the driver.
 * A device error fails the session: the robot is stopped, its position read again and recorded, and
@@ -43,6 +47,7 @@ from typing import Any
 from pydantic import BaseModel
 
 from station import __version__
+from station.arm_route import TO_REFERENCE_HINT, describe_offset, go_to_reference, max_step_of, plan_route
 from station.batch import measure_file
 from station.config import StationDevices
 from station.devices import (
@@ -423,8 +428,9 @@ class SessionRunner:
                 try:
                     steps, prelude = self._steps(ctx)
                     self._connect(stack)
-                    self._preflight(prelude + steps)
-                    for step in prelude + steps:
+                    route, problems = self._route(ctx, prelude)
+                    self._preflight(route + prelude + steps, problems)
+                    for step in route + prelude + steps:
                         self._safe_point()
                         self._run_step(sid, step, ctx)
                     self._drain()
@@ -577,9 +583,42 @@ class SessionRunner:
         except Exception as exc:  # noqa: BLE001 - the others must still be closed
             self._event("warning", {"message": f"closing the {name} failed: {exc}"})
 
-    def _preflight(self, steps: Sequence[Step]) -> None:
-        """Every problem at once, before anything moves."""
-        problems: list[str] = []
+    def _route(self, ctx: PlanContext, prelude: Sequence[Step]) -> tuple[list[Step], list[str]]:
+        """The session's first motion: the arm's route to the plan's reference pose from where it is
+        commanded (``station.arm_route``), as a step; none when the arm is there. For a plan that never
+        moves the arm, the pre-flight problem when it is not there instead."""
+        devices = self.devices
+        robot = devices.robot if devices is not None else None
+        pose = self.plan.reference_pose(self.params, ctx)
+        if devices is None or robot is None or pose is None:
+            return [], []
+        try:
+            start = tuple(robot.where().commanded_joints_deg)
+        except DeviceError as exc:  # pre-flight says so too when the plan moves the arm
+            why = f"the robot cannot be read (a {self.plan.name} needs the arm at its reference pose): {exc}"
+            return [], [] if pose.route else [why]
+        safety = devices.config.robot.safety if devices.config.robot is not None else None
+        route = plan_route(start, pose.joints_deg, max_step_deg=max_step_of(safety))
+        if not route.moves:
+            return [], []
+        if not pose.route:
+            return [], [
+                f"the arm is not at its reference pose ({describe_offset(start, route.target_deg)}); a"
+                f" {self.plan.name} never moves the arm: {TO_REFERENCE_HINT}, then start again"
+            ]
+        assert ctx.session_id is not None
+        used = [s.index for s in self.record.steps(ctx.session_id)] + [s.index for s in prelude]
+        index = max([PRELUDE_BASE - 1, *used]) + 1
+        how = "through the lift pose" if route.via_lift else "direct"
+        meta = {"role": "route", "via_lift": route.via_lift, "start_deg": list(start)}
+        step = Step(index, f"to the reference pose ({how})", tuple(MoveJoints(q) for q in route.moves), meta)
+        with self._lock:
+            self._total += 1
+        return [step], []
+
+    def _preflight(self, steps: Sequence[Step], problems: Sequence[str] = ()) -> None:
+        """Every problem at once (``problems``: those found before), before anything moves."""
+        problems = list(problems)
         devices = self.devices
         robot = devices.robot if devices is not None else None
         uses_robot = any(isinstance(a, MoveJoints | SetSpeed) for s in steps for a in s.actions)
@@ -947,10 +986,10 @@ class SessionRunner:
         reference = devices.reference_joints_deg if devices is not None else None
         if devices is None or devices.robot is None or reference is None or "robot" not in self.plan.needs:
             return
+        safety = devices.config.robot.safety if devices.config.robot is not None else None
         try:
-            devices.robot.check_move(reference)
-            devices.robot.move_joints(reference)
-            self._event("returned", {"joints_deg": list(reference)})
+            done = go_to_reference(devices.robot, reference, max_step_deg=max_step_of(safety))
+            self._event("returned", {"joints_deg": list(reference), "moves": done.moves})
         except DeviceError as exc:
             self._event("warning", {"message": f"could not return to the reference pose: {exc}"})
 

@@ -47,7 +47,7 @@ from typing import Any
 
 from station.plans import get_plan, parse_params
 from station.prompts import Prompt, PromptAnswer, PromptBroker, PromptEvent
-from station.record import EventRow, RecordError, SessionLockError, lock_holder
+from station.record import EventRow, RecordError, SessionLockError, lock_holder, station_lock
 from station.runner import (
     FINAL_STATES,
     PreflightError,
@@ -191,6 +191,7 @@ class SessionHost:
         self._runner: SessionRunner | None = None
         self._thread: threading.Thread | None = None
         self._closed = False
+        self._moving = False  # the arm is on its way to the reference pose (rpc_to_reference)
         self._listeners: list[Callable[[EventRow], None]] = []
         self._prompt_watch: threading.Thread | None = None
         self._prompt_events: list[PromptEvent] = []
@@ -345,6 +346,10 @@ class SessionHost:
                     f"session {current.session_id} ({current.plan.name}) is {current.state}: one session "
                     "at a time; wait for it to end, or stop or abort it first"
                 )
+            if self._moving:
+                raise ConflictError(
+                    "the arm is on its way to its reference pose (to-reference): start once it has arrived"
+                )
             holder = lock_holder(self.record.data_dir)
             if holder is not None:
                 raise SessionLockError(str(self.record.data_dir / "station.lock"), holder)
@@ -417,7 +422,7 @@ class SessionHost:
                 )
             if self.devices is None:
                 raise NotAvailableError("this service has no station (start it with --sim or --config)")
-            holder = lock_holder(self.record.data_dir)
+            holder = None if self._moving else lock_holder(self.record.data_dir)  # ours while it moves
             if holder is not None:
                 raise SessionLockError(str(self.record.data_dir / "station.lock"), holder)
             camera = self.devices.camera
@@ -426,6 +431,77 @@ class SessionHost:
                 return camera.grab().image
             finally:
                 camera.close()
+
+    # ------------------------------------------------------------------ the arm outside sessions
+
+    def _idle_robot(self, what: str) -> Any:
+        """The robot, when no session runs, the arm is not already moving and no other process holds the
+        station (ConflictError, NotAvailableError, SessionLockError otherwise); call with the lock held."""
+        runner = self._runner
+        if self._closed:
+            raise ConflictError("the service is shutting down")
+        if runner is not None and runner.state not in FINAL_STATES:
+            raise ConflictError(
+                f"session {runner.session_id} ({runner.plan.name}) is {runner.state} and owns the arm: {what}"
+                " once it has ended (or stop or abort it first)"
+            )
+        if self._moving:
+            raise ConflictError(f"the arm is on its way to its reference pose: {what} once it has arrived")
+        robot = self.devices.robot if self.devices is not None else None
+        if robot is None or self.devices.reference_joints_deg is None:
+            raise NotAvailableError(
+                "this station has no robot with a reference pose (configure [robot] with"
+                " reference_joints_deg, or start the service with --sim)"
+            )
+        holder = lock_holder(self.record.data_dir)
+        if holder is not None:
+            raise SessionLockError(str(self.record.data_dir / "station.lock"), holder)
+        return robot
+
+    def rpc_robot(self) -> dict[str, Any]:
+        """Where the arm is, its reference pose, and the route ``to-reference`` would take from here, with
+        every problem the driver's checks find in it (nothing moves)."""
+        from station.arm_route import robot_status
+
+        with self._lock:
+            robot = self._idle_robot("read it")
+            robot.connect()
+            try:
+                return robot_status(robot, self.devices.reference_joints_deg, self._max_step()).model_dump(
+                    mode="json"
+                )
+            finally:
+                robot.close()
+
+    def rpc_to_reference(self) -> dict[str, Any]:
+        """Take the arm to the station's reference pose along its route (``station.arm_route``), every move
+        checked before the first is sent (RouteRejectedError: nothing moved); what it did, as JSON."""
+        from station.arm_route import go_to_reference
+
+        with self._lock:
+            robot = self._idle_robot("move it")
+            self._moving = True
+        try:
+            with station_lock(self.record.data_dir, "to-reference"):
+                robot.connect()
+                try:
+                    robot.clear_stop()  # an operator's command, as a session's start is
+                    result = go_to_reference(
+                        robot, self.devices.reference_joints_deg, max_step_deg=self._max_step()
+                    )
+                finally:
+                    robot.close()
+        finally:
+            with self._lock:
+                self._moving = False
+        log.info("the arm is at its reference pose after %d move(s)", len(result.moves))
+        return result.model_dump(mode="json")
+
+    def _max_step(self) -> float:
+        from station.arm_route import max_step_of
+
+        robot = self.devices.config.robot
+        return max_step_of(robot.safety if robot is not None else None)
 
     def rpc_call(self, fn: Callable[..., Any], args: tuple[Any, ...]) -> Any:
         """``fn(host, *args)`` in the worker: tests and benchmarks reach a simulated station's truth."""
@@ -446,6 +522,9 @@ class SessionHost:
             self._closed = True
         with self._prompt_cond:
             self._prompt_cond.notify_all()
+        if self._moving and self.devices is not None and self.devices.robot is not None:
+            with contextlib.suppress(Exception):
+                self.devices.robot.stop()  # the arm on its way to the reference pose stops too
         runner, thread = self._runner, self._thread
         if runner is not None and thread is not None and thread.is_alive():
             sid = runner.session_id

@@ -10,6 +10,11 @@ A plan is a typed, validated parameter model plus three functions (see :class:`P
 * ``resume_prelude(params, ctx, next_step)`` gives the steps to run before resuming at ``next_step``
   (e.g. return to the reference pose and capture the reference again).
 * ``analyse(params, ctx, captures)`` turns the session's measured captures into its results.
+* ``reference_pose(params, ctx)`` says where a session of the plan starts (:class:`ReferencePose`): the
+  runner makes the arm's route there from wherever it is the session's first motion
+  (:mod:`station.arm_route`; checked in pre-flight from the arm's commanded position), or, for a plan
+  that must not move the arm, refuses at pre-flight when it is not there. Steps and resume preludes
+  start from that pose.
 
 Offline plans (``sweep``, ``reanalyse``) have no device actions: their steps carry a :class:`Compute`.
 Plans never touch a concrete driver; the runner executes the actions (architecture: plans and the
@@ -187,6 +192,17 @@ class PlanContext:
     calibration: CalibrationCell | None = None
 
 
+@dataclass(frozen=True)
+class ReferencePose:
+    """Where a plan's sessions start (six joint angles, deg). ``route``: the runner takes the arm there
+    from wherever it is before the first step (and before a resume's prelude); ``False``: the plan never
+    moves the arm (a validation: the operator's hands are at the table under it) and pre-flight refuses
+    when the arm is not there."""
+
+    joints_deg: tuple[float, ...]
+    route: bool = True
+
+
 class PlanError(ValueError):
     """A plan cannot run with these parameters or this station (the message says what to change)."""
 
@@ -209,6 +225,9 @@ class Plan(Protocol):
     def resume_prelude(self, params: Any, ctx: PlanContext, next_step: Step) -> list[Step]: ...
 
     def analyse(self, params: Any, ctx: PlanContext, captures: Sequence[CaptureResult]) -> dict[str, Any]: ...
+
+    def reference_pose(self, params: Any, ctx: PlanContext) -> ReferencePose | None:
+        """Where its sessions start (None: anywhere, the plan does not need the arm)."""
 
 
 def get_plan(name: str) -> Plan:
@@ -254,6 +273,7 @@ __all__ = [
     "Plan",
     "PlanContext",
     "PlanError",
+    "ReferencePose",
     "SetSpeed",
     "Settle",
     "Step",

@@ -20,7 +20,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from station.batch import measure_file
 from station.imagesets import ImageSet
-from station.plans import CaptureResult, Compute, PlanContext, PlanError, Step
+from station.plans import CaptureResult, Compute, PlanContext, PlanError, ReferencePose, Step
 from station.sweep import grid, run_sweep, seed_trials
 from station.validation import CALIBRATIONS
 from station.vision import MeasureParams
@@ -108,6 +108,9 @@ class SweepPlan:
     def resume_prelude(self, params: SweepParams, ctx: PlanContext, next_step: Step) -> list[Step]:
         return []
 
+    def reference_pose(self, params: SweepParams, ctx: PlanContext) -> ReferencePose | None:
+        return None  # no device
+
     def analyse(
         self, params: SweepParams, ctx: PlanContext, captures: Sequence[CaptureResult]
     ) -> dict[str, Any]:
@@ -165,6 +168,9 @@ class ReanalysePlan:
 
     def resume_prelude(self, params: ReanalyseParams, ctx: PlanContext, next_step: Step) -> list[Step]:
         return []
+
+    def reference_pose(self, params: ReanalyseParams, ctx: PlanContext) -> ReferencePose | None:
+        return None  # no device
 
     def analyse(
         self, params: ReanalyseParams, ctx: PlanContext, captures: Sequence[CaptureResult]

@@ -26,7 +26,17 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from station.devices import JOINT_COUNT
 from station.metrology import repeatability, rp_interval
-from station.plans import Capture, CaptureResult, MoveJoints, PlanContext, PlanError, SetSpeed, Settle, Step
+from station.plans import (
+    Capture,
+    CaptureResult,
+    MoveJoints,
+    PlanContext,
+    PlanError,
+    ReferencePose,
+    SetSpeed,
+    Settle,
+    Step,
+)
 from station.plans._analysis import failures, group_mean, measured, principal_point, series_positions_mm
 
 FloatArray = npt.NDArray[np.float64]
@@ -170,6 +180,11 @@ class RepeatabilityPlan:
     def _capture(self, params: RepeatabilityParams, meta: dict[str, Any]) -> tuple[Any, ...]:
         settle = (Settle(params.settle_s),) if params.settle_s else ()
         return (*settle, Capture(params.frames_per_capture, meta))
+
+    def reference_pose(self, params: RepeatabilityParams, ctx: PlanContext) -> ReferencePose | None:
+        """Every test starts and ends at the reference pose: the session's route goes there first."""
+        ref = params.reference_joints_deg or ctx.reference_joints_deg
+        return None if ref is None else ReferencePose(tuple(float(a) for a in ref))
 
     def resume_prelude(self, params: RepeatabilityParams, ctx: PlanContext, next_step: Step) -> list[Step]:
         """Back to the reference pose at the session's speed, and the reference captured again."""

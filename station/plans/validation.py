@@ -21,7 +21,16 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from station.metrology import compare_displacements, scale_uncertainty
 from station.patterns import STEP_UM, STEPS_PER_SIDE, validation_pattern_um
-from station.plans import Capture, CaptureResult, MoveTable, PlanContext, PlanError, Settle, Step
+from station.plans import (
+    Capture,
+    CaptureResult,
+    MoveTable,
+    PlanContext,
+    PlanError,
+    ReferencePose,
+    Settle,
+    Step,
+)
 from station.plans._analysis import failures, group_mean, measured, series_positions_mm
 
 
@@ -82,6 +91,12 @@ class ValidationPlan:
             actions.append(Capture(params.frames_per_position, meta))
             yield Step(i, f"position {i}", tuple(actions), meta)
             last = (x, y)
+
+    def reference_pose(self, params: ValidationParams, ctx: PlanContext) -> ReferencePose | None:
+        """The arm at the station's reference pose, over the table's artifact; never moved by a validation
+        (the operator's hands are at the micrometers under it): pre-flight refuses it anywhere else."""
+        ref = ctx.reference_joints_deg
+        return None if ref is None else ReferencePose(tuple(float(a) for a in ref), route=False)
 
     def resume_prelude(self, params: ValidationParams, ctx: PlanContext, next_step: Step) -> list[Step]:
         # Table positions are absolute micrometer readings: nothing to re-establish. The first step after
