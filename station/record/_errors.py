@@ -33,10 +33,16 @@ class SessionLockError(RecordError):
     """Another session holds the station: one session at a time per station."""
 
     def __init__(self, lock_path: str, holder: dict[str, object]) -> None:
+        if holder.get("pid") is None:  # the holder has not written its name yet
+            who = "another session is starting"
+        else:
+            who = (
+                f"session {holder.get('session_id')!r} runs in process {holder.get('pid')} on host "
+                f"{holder.get('host')!r}"
+            )
         super().__init__(
-            f"the station is busy: session {holder.get('session_id')!r} runs in process "
-            f"{holder.get('pid')} on host {holder.get('host')!r} (lock {lock_path}); wait for it to "
-            "finish or stop it first"
+            f"the station is busy: {who} (lock {lock_path}); wait for it to finish or stop it first"
         )
         self.lock_path = lock_path
         self.holder = holder
+
