@@ -46,3 +46,35 @@ class SessionLockError(RecordError):
         self.lock_path = lock_path
         self.holder = holder
 
+
+class NoRecordError(RecordError):
+    """A read-only command found no record in the data directory: nothing was ever recorded there."""
+
+    def __init__(self, data_dir: object) -> None:
+        super().__init__(
+            f"no record in {data_dir}: nothing has been recorded there yet (check --data or $STATION_DATA)"
+        )
+        self.data_dir = data_dir
+
+
+IMPORT_HINT = (
+    "nothing was imported: import a folder or zip written by `station export` (or export.zip), unchanged"
+)
+
+
+class ImportRefusedError(RecordError):
+    """An export folder or archive is refused before anything is written; ``field`` names what is wrong."""
+
+    code = "import_refused"
+
+    def __init__(self, field: str, reason: str, hint: str = IMPORT_HINT) -> None:
+        text = f"{field}: {reason}; {hint}" if hint else f"{field}: {reason}"
+        super().__init__(" ".join(text.split()))  # one line, whatever the reason holds
+        self.field = field
+        self.reason = reason
+
+
+class ArchiveRefusedError(ImportRefusedError):
+    """The zip archive itself is refused (not a zip, a bad entry, over a cap)."""
+
+    code = "bad_archive"

@@ -16,22 +16,36 @@ from collections.abc import Callable, Iterator, Mapping
 from datetime import UTC, datetime
 from pathlib import Path
 from types import TracebackType
-from typing import Any, Self
+from typing import Any, BinaryIO, Self
 
 import numpy as np
 import numpy.typing as npt
 import sqlalchemy as sa
 
 from station.record import _export, _images
-from station.record._engine import BEGIN_OPTION, create_engine, redact, upgrade
+from station.record._engine import BEGIN_OPTION, open_engine, reason
 from station.record._errors import RecordError, RecordNotFoundError
+from station.record._format import SESSION_ID, capture_file, capture_path
+from station.record._import import import_export
 from station.record._json import json_object, params_hash, strip_point_arrays
-from station.record._rows import STEP_STATES, CaptureRow, EventRow, MeasurementRow, SessionRow, StepRow
+from station.record._rows import (
+    STEP_STATES,
+    CaptureRow,
+    EventRow,
+    MeasurementRow,
+    SessionRow,
+    StepRow,
+    capture_row,
+    event_row,
+    measurement_row,
+    session_row,
+    step_row,
+)
 from station.record._schema import captures, events, measurements, new_id, sessions, steps
+from station.record._sources import ArchiveLimits, FolderSource, ZipSource, open_source
 
 Clock = Callable[[], datetime]
 _HEX_PREFIX = re.compile(r"[0-9a-f]{4,12}")
-_SESSION_ID = re.compile(r"[0-9a-f]{12}")
 MIN_PREFIX = 4
 
 
@@ -42,74 +56,6 @@ def _utc_now() -> datetime:
 def random_session_id() -> str:
     """12 lowercase hex digits from a random UUID (about 2.8e14 values)."""
     return uuid.uuid4().hex[:12]
-
-
-def session_row(r: sa.Row[Any]) -> SessionRow:
-    return SessionRow(
-        id=r.id,
-        kind=r.kind,
-        state=r.state,
-        created_at=r.created_at,
-        updated_at=r.updated_at,
-        params=r.params,
-        config=r.config,
-        identities=r.identities,
-        software=r.software,
-        results=r.results,
-        error=r.error,
-        parent_id=r.parent_id,
-        station=r.station,
-    )
-
-
-def event_row(r: sa.Row[Any]) -> EventRow:
-    return EventRow(id=r.id, session_id=r.session_id, seq=r.seq, time=r.time, type=r.type, data=r.data)
-
-
-def step_row(r: sa.Row[Any]) -> StepRow:
-    return StepRow(
-        session_id=r.session_id,
-        index=r.step_index,
-        name=r.name,
-        state=r.state,
-        data=r.data,
-        started_at=r.started_at,
-        finished_at=r.finished_at,
-    )
-
-
-def capture_row(r: sa.Row[Any]) -> CaptureRow:
-    return CaptureRow(
-        id=r.id,
-        session_id=r.session_id,
-        step_index=r.step_index,
-        frame_index=r.frame_index,
-        path=r.path,
-        width=r.width,
-        height=r.height,
-        dtype=r.dtype,
-        sha256=r.sha256,
-        timestamp_s=r.timestamp_s,
-        meta=r.meta,
-        z_mm=r.z_mm,
-    )
-
-
-def measurement_row(r: sa.Row[Any]) -> MeasurementRow:
-    return MeasurementRow(
-        id=r.id,
-        session_id=r.session_id,
-        capture_id=r.capture_id,
-        params_hash=r.params_hash,
-        software=r.software,
-        ok=r.ok,
-        result=r.result,
-    )
-
-
-def capture_path(session_id: str, step_index: int, frame_index: int) -> str:
-    """A capture's image path relative to the data directory."""
-    return f"images/{session_id}/{step_index:05d}-{frame_index:02d}.png"
 
 
 class Record:
@@ -127,6 +73,10 @@ class Record:
         Returns a new session id (12 lowercase hex digits); injected by tests.
     busy_timeout_s
         SQLite only: how long a writer waits for another writer before failing.
+    read_only
+        Open for reading only (``station sessions``, ``report``, ``export``): nothing is created,
+        migrated or written, and it works on a full disk or a read-only directory; a missing data
+        directory or record is a :class:`NoRecordError`.
     """
 
     def __init__(
@@ -137,20 +87,15 @@ class Record:
         clock: Clock = _utc_now,
         make_id: Callable[[], str] = random_session_id,
         busy_timeout_s: float = 30.0,
+        read_only: bool = False,
     ) -> None:
         self._data_dir = Path(data_dir)
-        try:
-            self._data_dir.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise RecordError(f"cannot create the data directory {self._data_dir}: {exc.strerror}") from exc
+        self._read_only = read_only
         self._clock = clock
         self._make_id = make_id
-        self._engine = create_engine(self._data_dir, url, busy_timeout_s=busy_timeout_s)
-        try:
-            upgrade(self._engine)
-        except BaseException:
-            self._engine.dispose()
-            raise
+        self._engine, self._url = open_engine(
+            self._data_dir, url, busy_timeout_s=busy_timeout_s, read_only=read_only
+        )
 
     # -- lifecycle -------------------------------------------------------------------------------
     @property
@@ -159,8 +104,12 @@ class Record:
 
     @property
     def url(self) -> str:
-        """The database URL with any password hidden."""
-        return redact(self._engine.url)
+        """The database URL with any password hidden (user part and query)."""
+        return self._url
+
+    @property
+    def read_only(self) -> bool:
+        return self._read_only
 
     @property
     def engine(self) -> sa.Engine:
@@ -184,6 +133,8 @@ class Record:
     @contextlib.contextmanager
     def _write(self) -> Iterator[sa.Connection]:
         """One write transaction; a database failure (disk full, lost server ...) is a RecordError."""
+        if self._read_only:
+            raise RecordError(f"the record at {self.url} was opened read-only: this command does not write")
         try:
             with self._engine.connect() as conn:
                 conn = conn.execution_options(**{BEGIN_OPTION: "IMMEDIATE"})
@@ -191,8 +142,8 @@ class Record:
                     yield conn
         except sa.exc.DBAPIError as exc:
             raise RecordError(
-                f"cannot write to the record at {self.url}: {exc.orig}; nothing of this change was "
-                "recorded (check free space and the database server)"
+                f"cannot write to the record at {self.url}: {reason(exc, self._engine.url)}; nothing of "
+                "this change was recorded (check free space and the database server)"
             ) from exc
 
     @contextlib.contextmanager
@@ -201,7 +152,9 @@ class Record:
             with self._engine.connect() as conn:
                 yield conn
         except sa.exc.DBAPIError as exc:
-            raise RecordError(f"cannot read the record at {self.url}: {exc.orig}") from exc
+            raise RecordError(
+                f"cannot read the record at {self.url}: {reason(exc, self._engine.url)}"
+            ) from exc
 
     def _now(self) -> datetime:
         now = self._clock()
@@ -232,7 +185,7 @@ class Record:
         if not kind:
             raise ValueError("kind must name the plan (validation, repeatability ...), not be empty")
         session_id = self._make_id()
-        if not _SESSION_ID.fullmatch(session_id):
+        if not SESSION_ID.fullmatch(session_id):
             raise RecordError(f"session id {session_id!r} is not 12 lowercase hex digits")
         now = self._now()
         row = SessionRow(
@@ -274,9 +227,14 @@ class Record:
         if not rows:
             raise RecordNotFoundError(id_or_prefix, self.url)
         if len(rows) > 1:
-            names = ", ".join(r.id for r in rows)
+            names = ", ".join(r.id[:40] for r in rows)
             raise RecordError(
                 f"session prefix {id_or_prefix!r} is ambiguous: it matches {names}; give more characters"
+            )
+        if not SESSION_ID.fullmatch(rows[0].id):  # a record altered by hand, or an old import
+            raise RecordError(
+                f"the record at {self.url} holds a session whose id {rows[0].id[:40]!r} is not 12 hex "
+                "digits: it was not written by the station; remove that session from the record"
             )
         return session_row(rows[0])
 
@@ -507,7 +465,13 @@ class Record:
 
     def load_image(self, capture: CaptureRow) -> npt.NDArray[np.uint8] | npt.NDArray[np.uint16]:
         """The capture's image, after checking the file's sha256 against the record."""
-        return _images.read_checked(self._data_dir / capture.path, capture.sha256)
+        return _images.read_checked(self.image_file(capture), capture.sha256)
+
+    def image_file(self, capture: CaptureRow) -> Path:
+        """The capture's image file (its recorded path checked to be the station's own for it)."""
+        return capture_file(
+            self._data_dir, capture.session_id, capture.step_index, capture.frame_index, capture.path
+        )
 
     # -- measurements ----------------------------------------------------------------------------
     def add_measurement(
@@ -549,5 +513,20 @@ class Record:
         return _export.export_session(self, self.get_session(session_id).id, Path(out_dir))
 
     def import_session(self, folder: Path) -> SessionRow:
-        """Import a folder written by :meth:`export_session`; the session keeps its id."""
-        return _export.import_session(self, Path(folder))
+        """Import a folder written by :meth:`export_session`; the session keeps its id.
+
+        The folder is untrusted input (``_import.py``): ImportRefusedError naming the field, and
+        nothing written, for anything that is not an unchanged export."""
+        with FolderSource(Path(folder)) as source:
+            return import_export(self, source)
+
+    def import_archive(self, file: BinaryIO, *, limits: ArchiveLimits | None = None) -> SessionRow:
+        """Import a zip of an export (``export.zip``, a zipped folder): :meth:`import_session`'s checks
+        and the archive's own caps."""
+        with ZipSource(file, limits=limits) as source:
+            return import_export(self, source)
+
+    def import_path(self, path: Path) -> SessionRow:
+        """Import an export folder, or a zip file of one (``station import``)."""
+        with open_source(Path(path)) as source:
+            return import_export(self, source)
