@@ -85,6 +85,7 @@ def import_export(record: Record, source: ExportSource, *, limits: ImageLimits |
         folder.mkdir()
         for i, capture in enumerate(doc.captures):
             _stage_image(source, capture, i, folder, limits or ImageLimits())
+        source.check_rest()
         _commit(record, doc, folder, target)
     finally:
         shutil.rmtree(staging, ignore_errors=True)  # empty after a success: the folder was moved out

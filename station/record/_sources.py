@@ -22,6 +22,7 @@ import stat
 import struct
 import zipfile
 import zlib
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
@@ -45,6 +46,10 @@ class ExportSource(Protocol):
 
     def file(self, path: str, field: str, *, max_bytes: int) -> bytes:
         """The bytes of the file at ``path`` (relative, ``/``-separated); ``field`` names it in a refusal."""
+        ...
+
+    def check_rest(self) -> None:
+        """Check what was not read (a zip's other entries: sizes and CRC), before anything is kept."""
         ...
 
     def close(self) -> None: ...
@@ -130,6 +135,9 @@ class FolderSource:
 
     def file(self, path: str, field: str, *, max_bytes: int) -> bytes:
         return self._read(path, field, path, max_bytes)
+
+    def check_rest(self) -> None:
+        """Nothing to check: a folder's other files are never read."""
 
     def close(self) -> None:
         if self._fd >= 0:
@@ -263,6 +271,7 @@ class ZipSource:
                     "archive", f"must hold one exported session (one {DOCUMENT}), found {len(documents)}"
                 )
             self._root = documents[0][: -len(DOCUMENT)]
+            self._read_names: set[str] = set()
         except BaseException:
             self._zip.close()
             raise
@@ -287,6 +296,30 @@ class ZipSource:
                 )
         return entries
 
+    def _stream(self, info: zipfile.ZipInfo) -> Iterator[bytes]:
+        """The entry's bytes in chunks, its declared size and CRC checked (ArchiveRefusedError)."""
+        name = info.filename
+        size = 0
+        try:
+            with self._zip.open(info) as f:
+                while chunk := f.read(min(1 << 20, info.file_size - size + 1)):
+                    size += len(chunk)
+                    if size > info.file_size:
+                        break
+                    yield chunk
+        except (zipfile.BadZipFile, EOFError, zlib.error, OSError, ValueError, NotImplementedError) as exc:
+            raise ArchiveRefusedError(f"archive entry {name[:80]!r}", f"cannot be read: {exc}") from None
+        if size != info.file_size:
+            raise ArchiveRefusedError(
+                f"archive entry {name[:80]!r}", f"declares {info.file_size} bytes but holds {size} or more"
+            )
+
+    def check_rest(self) -> None:
+        for name, info in self._entries.items():
+            if name not in self._read_names and not info.is_dir():
+                for _ in self._stream(info):
+                    pass
+
     def _read(self, name: str, field: str, max_bytes: int) -> bytes:
         info = self._entries.get(name)
         if info is None or info.is_dir():
@@ -295,15 +328,8 @@ class ZipSource:
             raise ImportRefusedError(
                 field, f"{name[:80]!r} declares {_mib(info.file_size)}, over the {_mib(max_bytes)} limit"
             )
-        try:
-            with self._zip.open(info) as f:
-                data = f.read(info.file_size + 1)
-        except (zipfile.BadZipFile, EOFError, zlib.error, OSError, ValueError, NotImplementedError) as exc:
-            raise ArchiveRefusedError(f"archive entry {name[:80]!r}", f"cannot be read: {exc}") from None
-        if len(data) != info.file_size:
-            raise ArchiveRefusedError(
-                f"archive entry {name[:80]!r}", f"declares {info.file_size} bytes but holds {len(data)}"
-            )
+        data = b"".join(self._stream(info))
+        self._read_names.add(name)
         return data
 
     def document(self) -> bytes:

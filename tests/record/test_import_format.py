@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 import pytest
 
-from station.record import ArchiveLimits, RecordError
+from station.record import RecordError
 from tests.record.importing import Scene, make_scene, sha256, zipped
 
 
@@ -134,8 +134,14 @@ def test_a_measurement_of_a_session_not_in_the_record_names_it(scene: Scene) -> 
 # ------------------------------------------------------------------------------------------- zip
 
 
-def _archive(scene: Scene, data: bytes, limits: ArchiveLimits | None = None) -> Callable[[], object]:
+def _archive(scene: Scene, data: bytes, limits: Any = None) -> Callable[[], object]:
     return lambda: scene.target.import_archive(io.BytesIO(data), limits=limits)
+
+
+def _limits(**caps: int) -> Any:
+    from station.record import ArchiveLimits
+
+    return ArchiveLimits(**caps)
 
 
 def test_a_zip_of_an_unchanged_export_imports(scene: Scene) -> None:
@@ -188,9 +194,9 @@ def test_a_zip_whose_declared_size_lies_is_refused(scene: Scene) -> None:
 
 def test_caps_on_entries_and_declared_size(scene: Scene) -> None:
     data = zipped(scene.folder)
-    _refused(scene, "entries, over the 3 limit", _archive(scene, data, ArchiveLimits(max_entries=3)))
-    _refused(scene, "of content, over the limit", _archive(scene, data, ArchiveLimits(max_total_bytes=1000)))
-    _refused(scene, "central directory", _archive(scene, data, ArchiveLimits(max_directory_bytes=100)))
+    _refused(scene, "entries, over the 3 limit", _archive(scene, data, _limits(max_entries=3)))
+    _refused(scene, "of content, over the limit", _archive(scene, data, _limits(max_total_bytes=1000)))
+    _refused(scene, "central directory", _archive(scene, data, _limits(max_directory_bytes=100)))
 
 
 def test_not_a_zip_two_sessions_and_repeated_entries_are_refused(scene: Scene) -> None:
@@ -212,7 +218,7 @@ def test_a_zip64_archive_is_sized_from_its_zip64_end_record(scene: Scene) -> Non
         for i in range(65_600):
             zf.writestr(f"x/f{i}", b"")
     message = _refused(
-        scene, "entries, over the", _archive(scene, buf.getvalue(), ArchiveLimits(max_entries=65_599))
+        scene, "entries, over the", _archive(scene, buf.getvalue(), _limits(max_entries=65_599))
     )
     assert "65600" in message
 

@@ -105,11 +105,17 @@ def a_failing_later_capture(s: Scene) -> str:
 
 
 def escaping_session_id(s: Scene) -> str:
-    """Table row 4: the session id ``dddd0000dddd/../../../../outside/report_escape`` (the old import
-    committed it, and the report of ``dddd0000`` was then written outside)."""
-    doc = s.doc()
-    doc["session"]["id"] = "dddd0000dddd/../../../../outside/report_escape"
-    s.write_doc(doc)
+    """Table row 4: the session id ``dddd0000dddd/../../../../outside/report_escape`` everywhere the id
+    appears (its capture paths too, their images planted where those paths lead from the folder); the
+    old import committed it, and the report of ``dddd0000`` was then written outside."""
+    crafted = "dddd0000dddd/../../../../outside/report_escape"
+    (s.folder / "images" / "dddd0000dddd").mkdir()
+    for c in s.doc()["captures"]:
+        planted = (s.folder / c["path"].replace(s.sid, crafted)).resolve()
+        planted.parent.mkdir(parents=True, exist_ok=True)
+        planted.write_bytes((s.folder / c["path"]).read_bytes())
+    text = (s.folder / "session.json").read_text()
+    (s.folder / "session.json").write_text(text.replace(s.sid, crafted))
     return "session.id"
 
 
@@ -130,15 +136,20 @@ def test_a_crafted_folder_is_refused_and_nothing_outside_the_staging_directory_c
 ) -> None:
     field = craft(scene)
     before = scene.snapshot()
-    with pytest.raises(RecordError) as refused:
+    try:
         scene.target.import_session(scene.folder)
-    message = str(refused.value)
-    assert field in message, message
-    assert "\n" not in message
+    except RecordError as exc:
+        refused: RecordError | None = exc
+    else:
+        refused = None
     after = scene.snapshot()
     assert after[1] == before[1], "the victim folder outside the data directory changed"
     assert after[0] == before[0], "the data directory's files changed"
     assert after[2] == before[2], "the record's rows changed"
+    assert refused is not None, "the crafted folder was imported"
+    message = str(refused)
+    assert field in message, message
+    assert "\n" not in message
     assert [s.id for s in scene.target.list_sessions()] == [scene.victim]
     scene.target.export_session(scene.victim, scene.outside.parent / "victim-export")  # still whole
 

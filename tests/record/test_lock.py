@@ -14,7 +14,6 @@ from pathlib import Path
 import pytest
 
 from station.record import SessionLockError, lock_holder, station_lock
-from station.record._lock import station_in_use
 
 HOLDER = """
 import sys, time
@@ -77,6 +76,8 @@ def test_lock_held_by_another_process_frees_when_it_is_killed(tmp_path: Path) ->
 def test_asking_who_holds_the_station_takes_no_lock_and_creates_nothing(tmp_path: Path) -> None:
     """``lock_holder`` tests the lock (``F_OFD_GETLK``) without taking it: a start that comes meanwhile
     is never refused because of it, and a station never used has no lock file made for the asking."""
+    from station.record import station_in_use
+
     assert lock_holder(tmp_path) is None
     assert list(tmp_path.iterdir()) == []
     with station_lock(tmp_path, "eeee00000005") as held:
@@ -91,6 +92,8 @@ def test_the_station_is_released_before_the_final_word_and_the_next_holder_waits
     """A session frees the station (byte 0) as soon as its outcome is known and keeps the record's last
     word (byte 1) while it records it: the next session gets the station at once, and enters its block
     (where it reconciles the record) only once the previous one has left its own."""
+    from station.record import station_in_use
+
     order: list[str] = []
     entered = threading.Event()
     with station_lock(tmp_path, "ffff00000006") as first:
