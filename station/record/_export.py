@@ -27,10 +27,10 @@ from station.record import _images
 from station.record._engine import head_revision
 from station.record._errors import RecordError
 from station.record._format import FORMAT, FORMAT_VERSION, capture_file
+from station.record._protocol import RecordLike
 from station.record._schema import captures, events, measurements, steps
 
 if TYPE_CHECKING:
-    from station.record._record import Record
     from station.record._rows import SessionRow
 
 _BATCH = 500
@@ -63,7 +63,7 @@ def _copy_image(src: Path, dst: Path, sha256: str) -> None:
     _images.write_atomic(dst, data)
 
 
-def export_session(record: Record, session_id: str, out_dir: Path) -> Path:
+def export_session(record: RecordLike, session_id: str, out_dir: Path) -> Path:
     session = record.get_session(session_id)
     final = out_dir / session.id
     if final.exists():
@@ -80,7 +80,7 @@ def export_session(record: Record, session_id: str, out_dir: Path) -> Path:
     return final
 
 
-def _export_into(record: Record, session: SessionRow, work: Path) -> None:
+def _export_into(record: RecordLike, session: SessionRow, work: Path) -> None:
     sid = session.id
     step_q = sa.select(steps).where(steps.c.session_id == sid).order_by(steps.c.step_index)
     event_q = sa.select(events).where(events.c.session_id == sid).order_by(events.c.id)

@@ -36,10 +36,10 @@ from station.imageio import ImageFileError, ImageLimits, decode_image
 from station.record import _images
 from station.record._errors import ImportRefusedError, RecordError, RecordNotFoundError
 from station.record._format import CaptureDoc, ExportDocument, parse_document
+from station.record._protocol import RecordLike
 from station.record._schema import captures, events, measurements, new_id, sessions, steps
 
 if TYPE_CHECKING:
-    from station.record._record import Record
     from station.record._rows import SessionRow
     from station.record._sources import ExportSource
 
@@ -51,7 +51,9 @@ _AT_FDCWD = -100
 _RENAME_NOREPLACE = 1
 
 
-def import_export(record: Record, source: ExportSource, *, limits: ImageLimits | None = None) -> SessionRow:
+def import_export(
+    record: RecordLike, source: ExportSource, *, limits: ImageLimits | None = None
+) -> SessionRow:
     """Import ``source`` into ``record`` (see the module notes); the session keeps its id.
 
     Raises
@@ -134,7 +136,7 @@ def _rename_noreplace(src: Path, dst: Path) -> None:
     os.rename(src, dst)
 
 
-def _commit(record: Record, doc: ExportDocument, folder: Path, target: Path) -> None:
+def _commit(record: RecordLike, doc: ExportDocument, folder: Path, target: Path) -> None:
     """The rows in one transaction, the staged folder renamed into place just before its commit."""
     images = target.parent
     made_images = not images.exists()
@@ -165,7 +167,7 @@ def _commit(record: Record, doc: ExportDocument, folder: Path, target: Path) -> 
 
 
 def _other_captures(
-    conn: sa.Connection, record: Record, doc: ExportDocument
+    conn: sa.Connection, record: RecordLike, doc: ExportDocument
 ) -> dict[tuple[str, int, int], int]:
     """The record's ids of the other sessions' captures the document measures (a re-analysis)."""
     sid = doc.session.id
@@ -193,7 +195,7 @@ def _other_captures(
     return found
 
 
-def _insert_rows(conn: sa.Connection, record: Record, doc: ExportDocument) -> None:
+def _insert_rows(conn: sa.Connection, record: RecordLike, doc: ExportDocument) -> None:
     s = doc.session
     sid = s.id
     conn.execute(sessions.insert().values(**s.model_dump()))
