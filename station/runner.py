@@ -402,7 +402,7 @@ class SessionRunner:
                 unsubscribe = self.devices.broker.subscribe(self._on_prompt)
             try:
                 final = self._run_session(sid)
-            except BaseException:  # KeyboardInterrupt, SystemExit: recorded (the arm stopped), re-raised
+            except BaseException:  # Ctrl-C, SystemExit, an error before it ran: recorded (the arm stopped)
                 held.release()
                 self._finish(sid, RunnerState.ABORTED if self._abort else RunnerState.FAILED)
                 raise

@@ -34,7 +34,7 @@ import sqlalchemy as sa
 
 from station.imageio import ImageFileError, ImageLimits, decode_image
 from station.record import _images
-from station.record._errors import ImportRefusedError, RecordError, RecordNotFoundError
+from station.record._errors import ImportRefusedError, RecordError, RecordNotFoundError, RecordWriteError
 from station.record._format import CaptureDoc, ExportDocument, parse_document
 from station.record._protocol import RecordLike
 from station.record._schema import captures, events, measurements, new_id, sessions, steps
@@ -63,6 +63,8 @@ def import_export(
     RecordError
         The record could not take it (the database, a full disk); nothing was kept.
     """
+    if record.read_only:
+        raise RecordError(f"the record at {record.url} was opened read-only: this command does not write")
     doc = parse_document(source.document())
     sid = doc.session.id
     with contextlib.suppress(RecordNotFoundError):
@@ -81,7 +83,10 @@ def import_export(
         )
     with record._read() as conn:
         _other_captures(conn, record, doc)  # refused before anything is written
-    staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=record.data_dir))
+    try:
+        staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=record.data_dir))
+    except OSError as exc:  # a full disk, a read-only directory
+        raise RecordWriteError(str(record.data_dir / f"{STAGING_PREFIX}..."), exc) from exc
     try:
         folder = staging / sid
         folder.mkdir()
