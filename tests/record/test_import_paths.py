@@ -225,3 +225,17 @@ def test_records_of_the_old_imports_do_not_read_outside(tmp_path: Path) -> None:
             rec.load_image(rec.capture(cap.id))
         with pytest.raises(RecordError, match="the record was altered"):
             rec.export_session(sid, tmp_path / "out")
+
+
+def test_a_session_id_an_old_import_took_unchecked_is_refused_when_read(tmp_path: Path) -> None:
+    """Table row 4's second half: the report of ``dddd0000`` was written where its id led (SQLite keeps
+    any length in the id column): such a row is refused when it is looked up, before any path is made."""
+    from station.record._schema import sessions
+
+    with Record(tmp_path / "data") as rec:
+        row = rec.create_session("validation", params={}, config={}, identities={}, software={})
+        values = {**row.__dict__, "id": "dddd0000dddd/../../../../outside/report_escape"}
+        with rec.engine.begin() as conn:
+            conn.execute(sa.insert(sessions).values(**values))
+        with pytest.raises(RecordError, match="is not 12 hex digits"):
+            rec.get_session("dddd0000")
