@@ -22,7 +22,7 @@ from station.devices import DeviceError, MotionRejectedError
 from station.imageio import ImageFileError
 from station.plans import PlanError
 from station.prompts import InvalidAnswerError, PromptBusyError, PromptError, UnknownPromptError
-from station.record import RecordError, RecordNotFoundError, SessionLockError
+from station.record import ImportRefusedError, RecordError, RecordNotFoundError, SessionLockError
 from station.runner import PreflightError, SessionError
 
 log = logging.getLogger(__name__)
@@ -35,6 +35,7 @@ STATUS_OF: tuple[tuple[type[Exception], int, str], ...] = (
     (RecordNotFoundError, 404, "session_not_found"),
     (SessionLockError, 409, "station_busy"),
     (ImportArchiveError, 422, "bad_archive"),
+    (ImportRefusedError, 422, "import_refused"),
     (PreflightError, 422, "preflight_failed"),
     (ConflictError, 409, "conflict"),
     (WorkerError, 503, "worker_unavailable"),

@@ -40,9 +40,10 @@ from station.imageio import ImageFileError, ImageLimits, decode_image
 from station.plans import PLAN_NAMES, PlanError
 from station.prompts import Prompt, PromptAnswer
 from station.record import (
+    ArchiveLimits,
+    ArchiveRefusedError,
     EventRow,
     Record,
-    RecordError,
     SessionLockError,
     SessionRow,
     lock_holder,
@@ -82,7 +83,7 @@ class ServiceSettings:
     manual_prompts: bool = False
     config: Path | None = None
     data: Path | None = None
-    database: str | None = None
+    database: str | None = field(default=None, repr=False)  # a URL may hold a password
     host: str = "127.0.0.1"
     port: int = 8465
     sim_options: dict[str, Any] = field(default_factory=dict)
@@ -524,31 +525,11 @@ class StationService:
             return buf.getvalue()
 
     def import_zip(self, data: bytes, *, max_bytes: int) -> SessionRow:
-        import tempfile
-
-        try:
-            zf = zipfile.ZipFile(io.BytesIO(data))
-        except zipfile.BadZipFile as exc:
-            raise ImportArchiveError(f"not a zip archive: {exc}") from exc
-        with zf, tempfile.TemporaryDirectory() as tmp:
-            total = 0
-            root = Path(tmp).resolve()
-            for info in zf.infolist():
-                total += info.file_size
-                target = (root / info.filename).resolve()
-                if not target.is_relative_to(root):
-                    raise ImportArchiveError(f"archive entry {info.filename!r} points outside the archive")
-                if total > max_bytes:
-                    raise ImportArchiveError(f"the archive unpacks to more than {max_bytes // 2**20} MiB")
-            zf.extractall(root)
-            folders = [p.parent for p in root.rglob("session.json")]
-            if len(folders) != 1:
-                raise ImportArchiveError(
-                    f"the archive must hold one exported session (one session.json), found {len(folders)}"
-                )
-            row = self.record.import_session(folders[0])
-            self._generation += 1
-            return row
+        """Import an uploaded zip of an export: the record's one import path (``station import`` too),
+        with the upload's caps; ImportRefusedError (HTTP 422) names what is refused."""
+        row = self.record.import_archive(io.BytesIO(data), limits=ArchiveLimits(max_total_bytes=max_bytes))
+        self._generation += 1
+        return row
 
 
 def measurement_names(values: Mapping[str, Any]) -> dict[str, Any]:
@@ -563,8 +544,8 @@ def measurement_names(values: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
-class ImportArchiveError(RecordError):
-    """An uploaded export archive cannot be imported (HTTP 422)."""
+ImportArchiveError = ArchiveRefusedError
+"""An uploaded export archive cannot be imported (HTTP 422 ``bad_archive``)."""
 
 
 __all__ = [

@@ -11,7 +11,7 @@ import inspect
 import logging
 import math
 import tomllib
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from importlib.metadata import entry_points
 from pathlib import Path
@@ -24,6 +24,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from station._pydantic import problems as describe
 from station.devices import Camera, DistanceSensor, Robot, XYTable
 from station.prompts import PromptBroker
+from station.redaction import redact
 
 log = logging.getLogger(__name__)
 
@@ -292,25 +293,6 @@ class StationConfig(BaseModel):
     def snapshot(self) -> dict[str, Any]:
         """JSON-ready copy for the record, with anything that looks like a secret redacted."""
         return redact(self.model_dump(mode="json"))
-
-
-SECRET_WORDS = ("password", "secret", "token", "key")
-
-
-def redact(value: Any) -> Any:
-    """A copy of ``value`` with every mapping entry whose name suggests a secret replaced by ``***``."""
-    if isinstance(value, Mapping):
-        return {
-            k: ("***" if any(w in str(k).lower() for w in SECRET_WORDS) else redact(v))
-            for k, v in value.items()
-        }
-    if isinstance(value, list | tuple):
-        return [redact(v) for v in value]
-    if isinstance(value, str) and "://" in value and "@" in value:
-        scheme, rest = value.split("://", 1)
-        creds, host = rest.rsplit("@", 1)
-        return f"{scheme}://{creds.split(':', 1)[0]}:***@{host}" if ":" in creds else value
-    return value
 
 
 def load_config(path: str | Path) -> StationConfig:

@@ -398,7 +398,7 @@ class SessionRunner:
         """Run the session to its end; returns the final state. Raises ``SessionLockError`` when another
         session holds the station (nothing is created or moved then)."""
         data_dir = Path(self.record.data_dir)
-        with station_lock(data_dir, self._session_id or "new"):
+        with station_lock(data_dir, self._session_id or "new") as held:
             reconcile(self.record)
             session = self.create()
             sid = session.id
@@ -407,9 +407,17 @@ class SessionRunner:
                 unsubscribe = self.devices.broker.subscribe(self._on_prompt)
             try:
                 final = self._run_session(sid)
+            except BaseException:  # Ctrl-C, SystemExit, an error before it ran: recorded (the arm stopped)
+                held.release()
+                self._finish(sid, RunnerState.ABORTED if self._abort else RunnerState.FAILED)
+                raise
             finally:
                 if unsubscribe is not None:
                     unsubscribe()
+            # the station is free before anyone can see the outcome: whoever sees it may start the next
+            # session at once (that one waits for this final state to be recorded before it reconciles)
+            held.release()
+            self._finish(sid, final)
             return final
 
     def _run_session(self, sid: str) -> RunnerState:
@@ -417,8 +425,6 @@ class SessionRunner:
         final = RunnerState.FAILED
         with self._lock:
             if self._abort:
-                self._set_state(RunnerState.ABORTED)
-                self.record.set_state(sid, RunnerState.ABORTED, error=self.error)
                 return RunnerState.ABORTED
             self._set_state(RunnerState.STOPPING if self._stop else RunnerState.RUNNING)
         try:
@@ -459,11 +465,9 @@ class SessionRunner:
             final = RunnerState.ABORTED if self._abort else RunnerState.FAILED
             self._fail(exc)
             self._analyse(sid, ctx, keep_going=True)
-        except BaseException as exc:  # KeyboardInterrupt, SystemExit: stop the arm, record, re-raise
+        except BaseException as exc:  # KeyboardInterrupt, SystemExit: stop the arm; run() records it
             self._fail(exc)
-            self._finish(sid, RunnerState.ABORTED if self._abort else RunnerState.FAILED)
             raise
-        self._finish(sid, final)
         return final
 
     def _close_store(self) -> None:

@@ -50,10 +50,16 @@ def data_dir_for(data: str | Path | None, config: StationConfig | None = None) -
 
 
 def open_record(
-    data: str | Path | None = None, database: str | None = None, config: StationConfig | None = None
+    data: str | Path | None = None,
+    database: str | None = None,
+    config: StationConfig | None = None,
+    *,
+    read_only: bool = False,
 ) -> Record:
+    """The record of ``--data`` / ``--database`` (or the configuration's); ``read_only`` for commands
+    that only read it (nothing created, migrated or written)."""
     url = database or (config.database if config is not None else None)
-    return Record(data_dir_for(data, config), url)
+    return Record(data_dir_for(data, config), url, read_only=read_only)
 
 
 def measure_params_for(

@@ -87,7 +87,7 @@ class WorkerSpec:
     manual_prompts: bool = False
     config: Path | None = None
     data: Path | None = None
-    database: str | None = None
+    database: str | None = field(default=None, repr=False)  # a URL may hold a password
     sim_options: dict[str, Any] = field(default_factory=dict)
     log_level: int = logging.INFO
     """The worker's log records at this level and above reach the front end's loggers (which filter them

@@ -116,16 +116,35 @@ class _Progress:
             self._bar.close()
 
 
+def failed_outcome(
+    kind: str | None, session_id: str | None, error: str, results: dict[str, Any] | None = None
+) -> str:
+    """``--json``'s last line when the session could not run or its outcome could not be recorded:
+    the outcome object with state ``failed`` and the error (``id`` null when no session was made)."""
+    doc = {"id": session_id, "kind": kind, "state": "failed", "results": results or {}, "error": error}
+    return json.dumps(doc, default=str)
+
+
 def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
+    def usage(message: str) -> None:
+        if args.json:
+            print(failed_outcome(args.kind, args.resume, message))
+        parser.error(message)
+
     if (args.kind is None) == (args.resume is None):
-        parser.error("give a session kind, or --resume ID (not both)")
+        usage("give a session kind, or --resume ID (not both)")
     if args.jobs < 1:
-        parser.error(f"--jobs must be at least 1, got {args.jobs}")
-    params = parse_params(parser, args.param)
+        usage(f"--jobs must be at least 1, got {args.jobs}")
+    try:
+        params = parse_params(parser, args.param)
+    except SystemExit:
+        if args.json:
+            print(failed_outcome(args.kind, args.resume, "a --param is not NAME=VALUE (see above)"))
+        raise
     try:
         assignments = dict(parse_assignments(args.assignments))
     except ValueError as exc:
-        parser.error(str(exc))
+        usage(str(exc))
     progress = _Progress()
     runners: list[SessionRunner] = []
     signals: dict[int, int] = {signal.SIGINT: 130, signal.SIGTERM: 143}
@@ -175,10 +194,20 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     if error_box:
         progress.close()
         failure = error_box[0]
+        if args.json:  # whatever failed, the last line is the outcome object (issue 18)
+            runner = runners[-1] if runners else None
+            print(
+                failed_outcome(
+                    args.kind or (runner.plan.name if runner is not None else None),
+                    (runner.session_id if runner is not None else None) or args.resume,
+                    str(failure) or type(failure).__name__,
+                    runner.results if runner is not None else None,
+                )
+            )
         if isinstance(failure, PlanError | ConfigurationError | ScaleCalibrationError):
             print(f"station run: {failure}", file=sys.stderr)
             return 2
-        if isinstance(failure, SessionLockError | SessionError | RecordError | DeviceError):
+        if isinstance(failure, SessionLockError | SessionError | RecordError | DeviceError | OSError):
             print(f"station run: {failure}", file=sys.stderr)
             return signals[received[0]] if received else 1
         raise failure
