@@ -210,16 +210,13 @@ def session_measure_params(
 
 
 def save_scale_calibration(record: Record, row: SessionRow) -> None:
-    """After a validation that succeeded: its groove-width estimate becomes the station's scale
-    calibration (``DATA/scale-calibration.json``), used by later sessions."""
-    if (
-        row.kind == "validation"
-        and row.state == "succeeded"
-        and row.results
-        and row.results.get("scale_calibration")
-    ):
-        cal = scal.ScaleCalibration.model_validate(row.results["scale_calibration"])
-        scal.save(cal, scal.station_file(record.data_dir))
+    """After a validation that succeeded and passed every gate: its groove-width estimate, with its
+    session id and checks, becomes the station's scale calibration (``DATA/scale-calibration.json``),
+    used by later sessions; the one it replaces stays in the history."""
+    cal = scal.from_validation(row.kind, row.state, row.results)
+    if cal is not None:
+        entry = scal.write(record.data_dir, cal)
+        log.info("scale calibration version %d from session %s", entry.version, row.id)
 
 
 def _calibration(

@@ -51,6 +51,7 @@ from station.plans import (
     Settle,
     Step,
 )
+from station.plans._calibration_gates import calibration_checks
 
 if TYPE_CHECKING:
     from station.vision import MeasureParams
@@ -435,8 +436,9 @@ class CalibrationPlan:
         return correct
 
     def resume_prelude(self, params: CalibrationParams, ctx: PlanContext, next_step: Step) -> list[Step]:
-        """Nothing: each configuration's step begins with its own travel (lift, swing, descend)."""
-        return []
+        """The session's speed again: a resume runs the interrupted configuration again from its start
+        (each configuration's step begins with its own travel: lift, swing, descend)."""
+        return [Step(-1, "resume: speed", (SetSpeed(params.speed_pct),), {"role": "resume"})]
 
     # ---------------------------------------------------------------- analysis
 
@@ -445,7 +447,9 @@ class CalibrationPlan:
     ) -> dict[str, Any]:
         from station.calibration_session import analyse_calibration
 
-        return analyse_calibration(params, _cell(ctx), captures)
+        results = analyse_calibration(params, _cell(ctx), captures)
+        results["checks"] = calibration_checks(results)
+        return results
 
 
 CALIBRATION = CalibrationPlan()

@@ -23,6 +23,18 @@ from station.metrology import compare_displacements, scale_uncertainty
 from station.patterns import STEP_UM, STEPS_PER_SIDE, validation_pattern_um
 from station.plans import Capture, CaptureResult, MoveTable, PlanContext, PlanError, Settle, Step
 from station.plans._analysis import failures, group_mean, measured, series_positions_mm
+from station.plans._gates import checks_json
+from station.plans._validation_gates import (
+    GROOVE_BAND_MM,
+    RIGID_LIMITS_UM,
+    groove_check,
+    live_resume,
+    live_table_moves,
+    positions_check,
+    resume_check,
+    rigid_checks,
+    table_moves_check,
+)
 
 
 class ValidationParams(BaseModel):
@@ -43,6 +55,24 @@ class ValidationParams(BaseModel):
     approach_um: float = Field(25.4, gt=0, le=1000, description="overshoot before a backwards approach")
     settle_s: float = Field(0.0, ge=0, le=600)
     prompt_timeout_s: float | None = Field(None, gt=0, description="operator answer timeout (None: wait)")
+    mean_limit_um: float | None = Field(
+        None, gt=0, le=10_000, description="rigid fit's mean error limit (um); default 2 precise, 20 paper"
+    )
+    max_limit_um: float | None = Field(
+        None, gt=0, le=10_000, description="rigid fit's max error limit (um); default 6 precise, 50 paper"
+    )
+    groove_width_band_mm: tuple[float, float] = Field(
+        GROOVE_BAND_MM,
+        description="the artifact's groove width tolerance band (mm); default 1/32 in +0/-0.002 in",
+    )
+
+    @field_validator("groove_width_band_mm")
+    @classmethod
+    def _band(cls, v: tuple[float, float]) -> tuple[float, float]:
+        lo, hi = v
+        if not (math.isfinite(lo) and math.isfinite(hi) and 0.05 <= lo <= hi <= 50.0):
+            raise ValueError(f"the band must be [low, high] mm with 0.05 <= low <= high <= 50, got {list(v)}")
+        return v
 
     @field_validator("pattern_um")
     @classmethod
@@ -84,9 +114,27 @@ class ValidationPlan:
             last = (x, y)
 
     def resume_prelude(self, params: ValidationParams, ctx: PlanContext, next_step: Step) -> list[Step]:
-        # Table positions are absolute micrometer readings: nothing to re-establish. The first step after
-        # a resume is approached from below (same-direction) because its predecessor is unknown.
-        return []
+        """The last confirmed position captured again (approached from below, backlash taken out): the
+        session continues only if it measures where it did before the interruption (``check_progress``).
+        """
+        if next_step.index == 0:
+            return []
+        last = list(self.steps(params, ctx))[next_step.index - 1]
+        x, y = last.meta["table_mm"]
+        a = params.approach_um / 1000.0
+        actions: list[Any] = [MoveTable(x - a, y - a, overshoot=True), MoveTable(x, y)]
+        if params.settle_s:
+            actions.append(Settle(params.settle_s))
+        meta = {**last.meta, "role": "resume_check"}
+        actions.append(Capture(params.frames_per_position, meta))
+        return [Step(-1, f"resume: {last.name} again", tuple(actions), meta)]
+
+    def check_progress(
+        self, params: ValidationParams, ctx: PlanContext, captures: Sequence[CaptureResult]
+    ) -> None:
+        """Live gates: a resume's re-capture must match, and the image must follow the table."""
+        live_resume(captures)
+        live_table_moves(captures)
 
     def analyse(
         self, params: ValidationParams, ctx: PlanContext, captures: Sequence[CaptureResult]
@@ -134,9 +182,21 @@ class ValidationPlan:
             ],
             "approach": params.approach,
             "n_positions": len(keys),
+            "partial": len(keys) < len(params.positions_um()),
             "failures": failures([c for c in captures if c.meta.get("role") == "position"]),
             "scale_calibration": None,
         }
+        mode = ctx.measure_params.mode
+        default_mean, default_max = RIGID_LIMITS_UM[mode]
+        limits = (params.mean_limit_um or default_mean, params.max_limit_um or default_max)
+        gates = [
+            table_moves_check(commanded, measured_um, keys),
+            groove_check(width_est, results["groove_width_u_mm"], params.groove_width_band_mm),
+            *rigid_checks(comp.rigid.mean, comp.rigid.max, limits, mode),
+            positions_check(len(keys), len(params.positions_um())),
+            resume_check(captures),
+        ]
+        results["checks"] = checks_json([g for g in gates if g is not None])
         if params.approach == "same-direction" and ctx.session_id is not None:
             results["scale_calibration"] = {
                 "groove_width_mm": width_est,
