@@ -19,7 +19,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from station.metrology import compare_displacements, scale_uncertainty
+from station.metrology import fit_affine, fit_rigid, scale_uncertainty
 from station.patterns import STEP_UM, STEPS_PER_SIDE, validation_pattern_um
 from station.plans import Capture, CaptureResult, MoveTable, PlanContext, PlanError, Settle, Step
 from station.plans._analysis import failures, group_mean, measured, series_positions_mm
@@ -152,31 +152,37 @@ class ValidationPlan:
         )
         commanded = commanded - commanded[0]
         measured_um = (mean_mm - mean_mm[0]) * 1000.0
-        comp = compare_displacements(commanded, measured_um)
-        rigid_res = comp.measured_um - (comp.commanded_um @ comp.rigid.A.T + comp.rigid.t)
-        affine_res = comp.measured_um - (comp.commanded_um @ comp.affine.A.T + comp.affine.t)
-        scale = comp.similarity.scale
-        u_scale = scale_uncertainty(commanded, comp.similarity)
-        width_est = width / scale
+        rigid = fit_rigid(commanded, measured_um)
+        similarity = fit_rigid(commanded, measured_um, with_scale=True)
+        # a pattern cut short along one side (a session stopped early) has no parallelogram fit
+        affine = fit_affine(commanded, measured_um) if np.linalg.matrix_rank(commanded) >= 2 else None
+        rigid_res = measured_um - (commanded @ rigid.A.T + rigid.t)
+        affine_res = None if affine is None else measured_um - (commanded @ affine.A.T + affine.t)
+        scale = similarity.scale
+        u_scale = scale_uncertainty(commanded, similarity)
+        seen = scale > 1e-9 and math.isfinite(scale)  # a table whose moves the image does not show: none
+        width_est = width / scale if seen else math.nan
         results: dict[str, Any] = {
-            "mean_um": comp.rigid.mean,
-            "max_um": comp.rigid.max,
-            "parallelogram_mean_um": comp.affine.mean,
-            "parallelogram_max_um": comp.affine.max,
+            "mean_um": rigid.mean,
+            "max_um": rigid.max,
+            "parallelogram_mean_um": None if affine is None else affine.mean,
+            "parallelogram_max_um": None if affine is None else affine.max,
             "scale": scale,
             "groove_width_mm": width_est,
-            "groove_width_u_mm": width * u_scale / scale**2,
+            "groove_width_u_mm": width * u_scale / scale**2 if seen else math.nan,
             "groove_width_used_mm": width,
-            "rigid": comp.rigid.summary_um(),
-            "similarity": comp.similarity.summary_um(),
-            "affine": comp.affine.summary_um(),
+            "rigid": rigid.summary_um(),
+            "similarity": similarity.summary_um(),
+            "affine": None if affine is None else affine.summary_um(),
             "positions": [
                 {
                     "index": int(k),
                     "commanded_um": [float(v) for v in commanded[j]],
                     "measured_um": [float(v) for v in measured_um[j]],
                     "error_um": [float(v) for v in rigid_res[j]],
-                    "error_parallelogram_um": [float(v) for v in affine_res[j]],
+                    "error_parallelogram_um": None
+                    if affine_res is None
+                    else [float(v) for v in affine_res[j]],
                 }
                 for j, k in enumerate(keys)
             ],
@@ -192,12 +198,12 @@ class ValidationPlan:
         gates = [
             table_moves_check(commanded, measured_um, keys),
             groove_check(width_est, results["groove_width_u_mm"], params.groove_width_band_mm),
-            *rigid_checks(comp.rigid.mean, comp.rigid.max, limits, mode),
+            *rigid_checks(rigid.mean, rigid.max, limits, mode),
             positions_check(len(keys), len(params.positions_um())),
             resume_check(captures),
         ]
         results["checks"] = checks_json([g for g in gates if g is not None])
-        if params.approach == "same-direction" and ctx.session_id is not None:
+        if params.approach == "same-direction" and ctx.session_id is not None and seen:
             results["scale_calibration"] = {
                 "groove_width_mm": width_est,
                 "u_mm": results["groove_width_u_mm"],
