@@ -42,7 +42,7 @@ from typing import Any
 
 from pydantic import BaseModel
 
-from station import __version__
+from station import __version__, scale_calibration
 from station.batch import measure_file
 from station.config import StationDevices
 from station.devices import (
@@ -482,10 +482,25 @@ class SessionRunner:
     def _finish(self, sid: str, final: RunnerState) -> None:
         if self.results is not None:
             self.record.set_results(sid, self.results)
+        if final is RunnerState.SUCCEEDED:
+            self._write_scale_calibration()  # before the state says succeeded: a client then finds it
         with self._lock:
             self._set_state(final)
         self.record.set_state(sid, final, error=None if final is RunnerState.SUCCEEDED else self.error)
         log.info("session %s %s", sid, final)
+
+    def _write_scale_calibration(self) -> None:
+        """A validation that passed every gate: its groove-width estimate becomes the station's scale
+        calibration (the one it replaces stays in the history, ``station.scale_calibration``)."""
+        cal = scale_calibration.from_validation(self.plan.name, RunnerState.SUCCEEDED, self.results)
+        if cal is None:
+            return
+        try:
+            entry = scale_calibration.write(self.record.data_dir, cal)
+        except (scale_calibration.ScaleCalibrationError, OSError) as exc:
+            self._event("warning", {"message": f"the scale calibration could not be written: {exc}"})
+            return
+        self._event("scale_calibration", {"version": entry.version, **cal.record()})
 
     def _fail(self, exc: BaseException) -> None:
         message = str(exc) or type(exc).__name__

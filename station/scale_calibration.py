@@ -262,3 +262,22 @@ def from_validation(kind: str, state: str, results: Mapping[str, Any] | None) ->
     ):
         return None
     return ScaleCalibration.model_validate({**results["scale_calibration"], "checks": checks})
+
+
+def status(data_dir: str | Path) -> dict[str, Any]:
+    """The station's scale calibration as ``station scale-calibration show --json`` and ``GET
+    /api/v1/station/scale-calibration`` give it: ``{"file", "calibration", "entry"}`` (the current file's
+    content and the history entry that made it current; None when there is none)."""
+    cal = current(data_dir)
+    entries = history(data_dir)
+    entry = next((e for e in reversed(entries) if cal is not None and e.version == cal.version), None)
+    return {
+        "file": str(station_file(data_dir)),
+        "calibration": None if cal is None else cal.model_dump(mode="json"),
+        "entry": None if entry is None else entry.model_dump(mode="json"),
+    }
+
+
+def history_json(data_dir: str | Path) -> list[dict[str, Any]]:
+    """The history, newest first, as JSON objects."""
+    return [e.model_dump(mode="json") for e in reversed(history(data_dir))]

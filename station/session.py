@@ -177,9 +177,7 @@ def run_session(
             if devices is not None:
                 devices.close_owned()
         assert runner.session_id is not None
-        row = record.get_session(runner.session_id)
-        save_scale_calibration(record, row)
-        return SessionOutcome.of(row)
+        return SessionOutcome.of(record.get_session(runner.session_id))
     finally:
         record.close()
 
@@ -207,16 +205,6 @@ def session_measure_params(
         # record of where that width came from
         cal_doc = record.get_session(str(plan_values["session"])).params.get("scale_calibration")
     return params, cal_doc
-
-
-def save_scale_calibration(record: Record, row: SessionRow) -> None:
-    """After a validation that succeeded and passed every gate: its groove-width estimate, with its
-    session id and checks, becomes the station's scale calibration (``DATA/scale-calibration.json``),
-    used by later sessions; the one it replaces stays in the history."""
-    cal = scal.from_validation(row.kind, row.state, row.results)
-    if cal is not None:
-        entry = scal.write(record.data_dir, cal)
-        log.info("scale calibration version %d from session %s", entry.version, row.id)
 
 
 def _calibration(
