@@ -9,13 +9,12 @@ from pathlib import Path
 from typing import Any
 
 from station import scale_calibration as scal
-from station.commands import SubParsers
 from station.config import ConfigurationError, load_config
 from station.record import lock_holder
 from station.session import data_dir_for
 
 
-def register(sub: SubParsers) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "scale-calibration",
         help="show, list or revert the station's scale calibration (the groove width it measures with)",

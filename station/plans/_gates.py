@@ -18,13 +18,13 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
-from station.plans import PlanError
-
 Severity = Literal["fail", "warn"]
 
 
-class GateError(PlanError):
-    """The session's result cannot be right (a gate failed while it ran): the message says what to do."""
+class GateError(ValueError):
+    """The session's result cannot be right (a gate failed while it ran): the message says what to do.
+
+    (A ValueError, as ``station.plans.PlanError`` is: the runner fails the session with its message.)"""
 
 
 @dataclass(frozen=True)

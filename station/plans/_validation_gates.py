@@ -19,14 +19,12 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from typing import Any
+from collections.abc import Mapping, Sequence
+from typing import Any, Protocol
 
 import numpy as np
 import numpy.typing as npt
 
-from station.plans import CaptureResult
-from station.plans._analysis import measured
 from station.plans._gates import Check, GateError, at_least, at_most, within
 
 FloatArray = npt.NDArray[np.float64]
@@ -49,6 +47,21 @@ NOT_SEEN = (
     "the camera does not see the table's artifact move: is the arm at its reference pose over the table?"
 )
 SETUP_MOVED = "the setup moved while the station was down; start a new validation"
+
+
+class CaptureResult(Protocol):
+    """What the gates read of a capture (``station.plans.CaptureResult``)."""
+
+    @property
+    def step_index(self) -> int: ...
+    @property
+    def meta(self) -> Mapping[str, Any]: ...
+    @property
+    def measurement(self) -> Mapping[str, Any] | None: ...
+
+
+def measured(captures: Sequence[CaptureResult]) -> list[CaptureResult]:
+    return [c for c in captures if c.measurement is not None and c.measurement.get("ok")]
 
 
 def _center_um(captures: Sequence[CaptureResult]) -> FloatArray | None:

@@ -436,9 +436,8 @@ class CalibrationPlan:
         return correct
 
     def resume_prelude(self, params: CalibrationParams, ctx: PlanContext, next_step: Step) -> list[Step]:
-        """The session's speed again: a resume runs the interrupted configuration again from its start
-        (each configuration's step begins with its own travel: lift, swing, descend)."""
-        return [Step(-1, "resume: speed", (SetSpeed(params.speed_pct),), {"role": "resume"})]
+        """Nothing: each configuration's step begins with its own travel (lift, swing, descend)."""
+        return []
 
     # ---------------------------------------------------------------- analysis
 

@@ -1,9 +1,10 @@
 """Each gate catches its fault, on the simulated station (issue 19): the fault is made in the simulated
 world (its truth), the session is the station's own, and the verdict is read from its results.
 
-* the arm off its reference pose, over a bench artifact (what an aborted calibration leaves): the
+* an artifact that does not move with the table (an operator confirms readings, nothing moves): the
   validation stops at once, fails, and the station's scale calibration stays as it was (finding 1);
-* an artifact that does not move with the table (an operator confirms readings without turning);
+* the arm off its reference pose, over a bench artifact (what an aborted calibration leaves), with the
+  reference pose taught there so that no pre-flight check can tell: the same gate stops it;
 * a micrometer misread by one turn (0.025 in) at one position;
 * a groove width far off the artifact's tolerance;
 * the artifact knocked between two repeatability tests;
@@ -13,6 +14,7 @@ world (its truth), the session is the station's own, and the verdict is read fro
 
 from __future__ import annotations
 
+import math
 import threading
 from collections.abc import Callable, Iterator
 from dataclasses import replace
@@ -28,7 +30,7 @@ from station import scale_calibration as scal
 from station.config import StationDevices
 from station.plans import get_plan, parse_params
 from station.plans._validation_gates import NOT_SEEN, SETUP_MOVED
-from station.plans.calibration import CALIBRATION, CalibrationParams, calibration_cell_from_config, travel
+from station.plans.calibration import CALIBRATION, CalibrationParams, calibration_cell_from_config
 from station.prompts import Prompt
 from station.record import Record
 from station.runner import RunnerState, SessionRunner
@@ -101,9 +103,26 @@ def validate(record: Record, devices: StationDevices, **params: Any) -> tuple[Se
     return runner, log
 
 
-def park_over_a_bench_artifact(devices: StationDevices) -> None:
+def waypoints(
+    start: tuple[float, ...], end: tuple[float, ...], step_deg: float = 9.0
+) -> list[tuple[float, ...]]:
+    """From ``start`` to ``end`` through both lift poses (upper arm and forearm upright), no joint moving
+    more than ``step_deg`` at a time: the way an aborted calibration's travel goes."""
+    out: list[tuple[float, ...]] = []
+    here = start
+    for there in ((start[0], 0.0, 0.0, *start[3:]), (end[0], 0.0, 0.0, *end[3:]), end):
+        n = max(1, math.ceil(max(abs(b - a) for a, b in zip(here, there, strict=True)) / step_deg))
+        out += [
+            tuple(round(a + (b - a) * k / n, 3) for a, b in zip(here, there, strict=True))
+            for k in range(1, n + 1)
+        ]
+        here = there
+    return out
+
+
+def park_over_a_bench_artifact(devices: StationDevices) -> tuple[float, ...]:
     """Leave the arm where an aborted calibration leaves it: square on bench artifact 1, whose crossing
-    the camera measures (checked), through the driver and the controller twin."""
+    the camera measures (checked), through the driver and the controller twin; the joints."""
     cell = calibration_cell_from_config(devices.config.model_dump(mode="json"), MeasureParams())
     assert cell is not None
     robot, camera = devices.robot, devices.camera
@@ -114,19 +133,34 @@ def park_over_a_bench_artifact(devices: StationDevices) -> None:
         for c in CALIBRATION.configurations(CalibrationParams(), cell):
             if c.placement != 1:
                 continue
-            here = tuple(robot.where().commanded_joints_deg)
-            for q in travel(here, c.joints_deg, cell.max_step_deg * 0.9):
+            for q in waypoints(tuple(robot.where().commanded_joints_deg), c.joints_deg):
                 robot.move_joints(q)
             try:
                 measure(camera.grab().image, MeasureParams())
             except MeasurementError:
                 continue
             assert devices.truth.world.seen_artifact(devices.truth.world.camera_pose()) == 1
-            return
+            return tuple(robot.where().commanded_joints_deg)
         raise AssertionError("no configuration over bench artifact 1 shows its crossing")
     finally:
         camera.close()
         robot.close()
+
+
+class StillOperator:
+    """The fault, in the world: the operator confirms each reading, but the artifact the camera sees does
+    not move (it is not the table's, or not on the table). Installed on the session's own station."""
+
+    def __init__(self) -> None:
+        self.operator: FaultyOperator | None = None
+
+    def __call__(self, runner: SessionRunner) -> None:
+        assert runner.devices is not None
+        self.operator = FaultyOperator(runner.devices, lambda i, x, y: None)
+
+    def close(self) -> None:
+        if self.operator is not None:
+            self.operator.close()
 
 
 @pytest.mark.timeout(300)
@@ -140,11 +174,11 @@ def test_a_validation_whose_camera_does_not_see_the_table_move_fails_and_keeps_t
     kept = path.read_bytes()
     assert scal.load(path).session_id == good.id
 
-    def park(runner: SessionRunner) -> None:
-        assert runner.devices is not None
-        park_over_a_bench_artifact(runner.devices)
-
-    bad = run_session("validation", sim=True, data=data, on_runner=park)
+    still = StillOperator()
+    try:
+        bad = run_session("validation", sim=True, data=data, on_runner=still)
+    finally:
+        still.close()
     assert bad.state == "failed"
     assert str(bad.error).startswith(NOT_SEEN), bad.error
     check = checks_of(bad.results)["table_moves"]
@@ -159,22 +193,27 @@ def test_a_validation_whose_camera_does_not_see_the_table_move_fails_and_keeps_t
     assert [e.action for e in scal.history(data)] == ["validation"]
 
 
-def test_an_artifact_that_does_not_move_with_the_table_stops_the_validation(record: Record) -> None:
+def test_the_arm_off_its_reference_over_a_bench_artifact_stops_the_validation(record: Record) -> None:
+    """The arm left over bench artifact 1, and the station's reference pose taught there (so that nothing
+    before the session can tell): the camera sees a crossing, but not the table's."""
     devices = build_sim_station(seed=2)
-    operator = FaultyOperator(devices, lambda i, x, y: None)  # confirms, but nothing moves
     try:
+        parked = park_over_a_bench_artifact(devices)
+        robot = devices.config.robot
+        assert robot is not None
+        devices.config = devices.config.model_copy(
+            update={"robot": robot.model_copy(update={"reference_joints_deg": parked})}
+        )
         runner, log = validate(record, devices)
     finally:
-        operator.close()
         devices.close_owned()
     assert runner.state is RunnerState.FAILED
-    assert runner.error is not None
-    assert runner.error.startswith(NOT_SEEN)
+    assert str(runner.error).startswith(NOT_SEEN)
     positions = sorted(c.meta["position"] for c in record.captures(sid_of(runner)))
     assert positions == [0, 1, 2, 3, 4, 5]  # stopped at the first position 25 um from the start
-    assert operator.answered == 7  # position 0 is approached from below: two prompts, then one each
     assert not checks_of(results_of(record, runner))["table_moves"]["passed"]
     assert [e.data["type"] for e in log.of("error")] == ["GateError"]
+    assert not scal.station_file(record.data_dir).exists()  # no scale calibration from it
 
 
 def test_a_micrometer_misread_by_one_turn_fails_the_rigid_fit(record: Record) -> None:
