@@ -590,11 +590,11 @@ class SessionRunner:
             return remaining
         assert ctx.session_id is not None
         first, reason = rule(self.params, ctx, steps, remaining[0])
-        redo = [s for s in steps if s.index >= first]
-        again = {s.index for s in redo} & done
-        if again:
-            ids = [c.id for c in self.record.captures(ctx.session_id) if c.step_index in again]
-            self._event("abandoned", {"reason": reason, "steps": sorted(again), "captures": ids})
+        redo = {s.index for s in steps if s.index >= first}
+        ids = [c.id for c in self.record.captures(ctx.session_id) if c.step_index in redo]
+        if ids or redo & done:
+            # every capture of the steps run again, the interrupted one's included: never analysed again
+            self._event("abandoned", {"reason": reason, "steps": sorted(redo & done), "captures": ids})
         return [s for s in steps if s.index not in done or s.index >= first]
 
     def _check_progress(self, sid: str, ctx: PlanContext) -> None:

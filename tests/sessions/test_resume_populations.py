@@ -3,8 +3,11 @@
 A repeatability session killed (SIGKILL of a real process) in the middle of a test, and resumed after the
 artifact was knocked 50 um on its table while the station was down (in the simulated world: its truth),
 reruns the interrupted test from its start, warm-up included: that test's RP is of one population, and
-matches the RP of the same session run without interruption within that session's bootstrap interval.
-The interrupted attempt's captures stay in the record, marked abandoned, and never enter RP.
+matches the RP of the same session run without interruption within that session's bootstrap interval
+(pooling the 13 cycles before the kill with the 11 after it, as the station did, gave 0.042 mm against
+an interval of 0.013-0.019 mm). The interrupted attempt's captures stay in the record, marked abandoned,
+and never enter RP. (The runner's test on the fakes checks that a test completed before the interruption
+is not run again.)
 """
 
 from __future__ import annotations
@@ -22,8 +25,7 @@ from station.runner import SessionRunner
 from station.session import run_session
 from tests.sessions.test_cli_sessions import STATION
 
-PARAMS = {"cycles": 24, "warmup_cycles": 2, "joints": [1, 2]}
-STEPS_PER_TEST = 1 + 2 + 24
+PARAMS = {"cycles": 24, "warmup_cycles": 2, "joints": [2]}
 
 
 def kill_after(data: Path, done_steps: int) -> str:
@@ -69,10 +71,9 @@ def test_a_killed_and_resumed_repeatability_matches_the_uninterrupted_session(tm
     lo, hi = reference["rp_ci95_mm"]
 
     data = tmp_path / "killed"
-    sid = kill_after(data, STEPS_PER_TEST + 16)  # J1 done; J2's reference, warm-ups and 13 cycles
+    sid = kill_after(data, 16)  # J2's reference, warm-ups and 13 of its 24 cycles
     with Record(data) as rec:
-        before_j2 = {c.id for c in rec.captures(sid) if c.meta["test"] == "J2"}
-        before_j1 = {c.id for c in rec.captures(sid) if c.meta["test"] == "J1"}
+        before = {c.id for c in rec.captures(sid)}
     resumed = run_session(resume=sid, sim=True, data=data, on_runner=knock_the_table)
     assert resumed.state == "succeeded", resumed.error
     test = resumed.results["tests"]["J2"]
@@ -85,14 +86,13 @@ def test_a_killed_and_resumed_repeatability_matches_the_uninterrupted_session(tm
     with Record(data) as rec:
         after = rec.captures(sid)
         events = rec.events(sid)
-    assert before_j1 | before_j2 <= {c.id for c in after}  # nothing captured before the kill was lost
-    # J2 ran again from its start after the resume (reference, warm-ups, every cycle); J1 did not
+    assert before <= {c.id for c in after}  # nothing captured before the kill was lost
+    # J2 ran again from its start after the resume: its reference, warm-ups and every cycle
     rerun = [c for c in after if c.meta.get("run") == 1]
-    assert {c.meta["test"] for c in rerun} == {"J2"}
     assert next(c.meta["role"] for c in rerun) == "reference"
     assert sorted(c.meta["cycle"] for c in rerun if c.meta["role"] == "cycle") == list(range(24))
     # the interrupted attempt's J2 captures are marked abandoned in the record
     abandoned = [e for e in events if e.type == "abandoned"]
     assert len(abandoned) == 1
-    assert set(abandoned[0].data["captures"]) == before_j2
+    assert set(abandoned[0].data["captures"]) == before
     assert "J2" in abandoned[0].data["reason"]
