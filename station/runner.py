@@ -16,7 +16,11 @@ States (``RunnerState``)::
 * A device error fails the session: the robot is stopped, its position read again and recorded, and
   everything captured until then stays in the record.
 * One session at a time per station (data directory), across processes: a ``station_lock`` that a dead
-  owner's lock does not block. After a crash, ``resume`` continues after the last completed step.
+  owner's lock does not block. After a crash, ``resume`` continues after the last completed step, or
+  from where the plan's resume rule says (``resume_from``: repeatability reruns the interrupted test).
+* Gates: a result that fails one of its ``fail`` checks (``results.checks``) ends the session ``failed``
+  with their messages, its results kept; a plan's ``check_progress`` stops it at once. A validation that
+  succeeded writes the station's scale calibration before its state says so.
 
 Every capture is stored (lossless, fsynced) before it is measured, and measured from the stored file, so
 re-analysis of the record reproduces the live results bit for bit. Events (state changes, steps, images,
