@@ -5,9 +5,9 @@ artifact was knocked 50 um on its table while the station was down (in the simul
 reruns the interrupted test from its start, warm-up included: that test's RP is of one population, and
 matches the RP of the same session run without interruption within that session's bootstrap interval
 (pooling the 13 cycles before the kill with the 11 after it, as the station did, gave 0.046 mm against
-an interval of 0.013-0.022 mm; rerun, 0.01798 mm against the uninterrupted 0.01797 mm). The interrupted attempt's captures stay in the record, marked abandoned,
-and never enter RP. (The runner's test on the fakes checks that a test completed before the interruption
-is not run again.)
+an interval of 0.013-0.022 mm; rerun, 0.01798 mm against the uninterrupted 0.01797 mm). The interrupted
+attempt's captures stay in the record, marked abandoned, and never enter RP. (The runner's test on the
+fakes checks that a test completed before the interruption is not run again.)
 """
 
 from __future__ import annotations
