@@ -24,6 +24,7 @@ from station.plans import PlanError
 from station.prompts import InvalidAnswerError, PromptBusyError, PromptError, UnknownPromptError
 from station.record import ImportRefusedError, RecordError, RecordNotFoundError, SessionLockError
 from station.runner import PreflightError, SessionError
+from station.scale_calibration import NothingToRevertError, ScaleCalibrationError
 
 log = logging.getLogger(__name__)
 
@@ -33,6 +34,8 @@ PROBLEM_BASE = "https://station.invalid/problems/"
 #: Exception type -> (HTTP status, code). The first matching entry wins (most specific first).
 STATUS_OF: tuple[tuple[type[Exception], int, str], ...] = (
     (RecordNotFoundError, 404, "session_not_found"),
+    (NothingToRevertError, 409, "nothing_to_revert"),
+    (ScaleCalibrationError, 422, "scale_calibration_error"),
     (SessionLockError, 409, "station_busy"),
     (ImportArchiveError, 422, "bad_archive"),
     (ImportRefusedError, 422, "import_refused"),

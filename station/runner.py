@@ -20,7 +20,11 @@ States (``RunnerState``)::
 * A device error fails the session: the robot is stopped, its position read again and recorded, and
   everything captured until then stays in the record.
 * One session at a time per station (data directory), across processes: a ``station_lock`` that a dead
-  owner's lock does not block. After a crash, ``resume`` continues after the last completed step.
+  owner's lock does not block. After a crash, ``resume`` continues after the last completed step, or
+  from where the plan's resume rule says (``resume_from``: repeatability reruns the interrupted test).
+* Gates: a result that fails one of its ``fail`` checks (``results.checks``) ends the session ``failed``
+  with their messages, its results kept; a plan's ``check_progress`` stops it at once. A validation that
+  succeeded writes the station's scale calibration before its state says so.
 
 Every capture is stored (lossless, fsynced) before it is measured, and measured from the stored file, so
 re-analysis of the record reproduces the live results bit for bit. Events (state changes, steps, images,
@@ -46,7 +50,7 @@ from typing import Any
 
 from pydantic import BaseModel
 
-from station import __version__
+from station import __version__, scale_calibration
 from station.arm_route import TO_REFERENCE_HINT, describe_offset, go_to_reference, max_step_of, plan_route
 from station.batch import measure_file
 from station.config import StationDevices
@@ -79,6 +83,7 @@ from station.plans import (
     Settle,
     Step,
 )
+from station.plans._gates import verdict
 from station.prompts import PromptError, PromptEvent
 from station.record import EventRow, Record, RecordError, SessionRow, station_lock
 from station.vision import MeasurementError, MeasureParams, measure
@@ -255,6 +260,7 @@ class SessionRunner:
         self._offset_base: tuple[float, ...] | None = None  # where a step's MoveOffset offsets start
         self._frame_base = 0  # the current step attempt's first frame index
         self._frames_in_step = 0
+        self._run = 0  # how many times this session was resumed: captures of a resumed run carry it
         self.error: str | None = None
         self.results: dict[str, Any] | None = None
 
@@ -439,6 +445,7 @@ class SessionRunner:
                     for step in route + prelude + steps:
                         self._safe_point()
                         self._run_step(sid, step, ctx)
+                        self._check_progress(sid, ctx)
                     self._drain()
                     self._check_store()
                     final = RunnerState.SUCCEEDED
@@ -452,6 +459,12 @@ class SessionRunner:
             self._analyse(sid, ctx, keep_going=final is not RunnerState.SUCCEEDED)
             if final is RunnerState.SUCCEEDED and self.results is None:
                 final = RunnerState.FAILED
+            gates = verdict(self.results)
+            if final is RunnerState.SUCCEEDED and gates is not None:
+                # a result that fails a gate is kept and shown, marked failed: never a success
+                final = RunnerState.FAILED
+                self.error = gates
+                self._event("error", {"message": gates, "type": "GateError"})
         except (_AbortRequestedError, MotionStoppedError, OperatorCancelledError) as exc:
             if self._abort:
                 final = RunnerState.ABORTED
@@ -483,10 +496,25 @@ class SessionRunner:
     def _finish(self, sid: str, final: RunnerState) -> None:
         if self.results is not None:
             self.record.set_results(sid, self.results)
+        if final is RunnerState.SUCCEEDED:
+            self._write_scale_calibration()  # before the state says succeeded: a client then finds it
         with self._lock:
             self._set_state(final)
         self.record.set_state(sid, final, error=None if final is RunnerState.SUCCEEDED else self.error)
         log.info("session %s %s", sid, final)
+
+    def _write_scale_calibration(self) -> None:
+        """A validation that passed every gate: its groove-width estimate becomes the station's scale
+        calibration (the one it replaces stays in the history, ``station.scale_calibration``)."""
+        cal = scale_calibration.from_validation(self.plan.name, RunnerState.SUCCEEDED, self.results)
+        if cal is None:
+            return
+        try:
+            entry = scale_calibration.write(self.record.data_dir, cal)
+        except (scale_calibration.ScaleCalibrationError, OSError) as exc:
+            self._event("warning", {"message": f"the scale calibration could not be written: {exc}"})
+            return
+        self._event("scale_calibration", {"version": entry.version, **cal.record()})
 
     def _fail(self, exc: BaseException) -> None:
         message = str(exc) or type(exc).__name__
@@ -548,20 +576,50 @@ class SessionRunner:
         prelude: list[Step] = []
         assert ctx.session_id is not None
         if self._resume is not None:
-            done = {s.index for s in self.record.steps(ctx.session_id) if s.state == "done"}
+            rows = self.record.steps(ctx.session_id)
+            self._run = 1 + max((int(r.data.get("run", 0)) for r in rows), default=0)
+            done = {s.index for s in rows if s.state == "done"}
             remaining = [s for s in steps if s.index not in done]
-            n_pre = sum(1 for s in self.record.steps(ctx.session_id) if s.index >= PRELUDE_BASE)
+            n_pre = sum(1 for s in rows if s.index >= PRELUDE_BASE)
             if remaining and done:
+                remaining = self._redo(ctx, steps, remaining, done)
                 for k, s in enumerate(self.plan.resume_prelude(self.params, ctx, remaining[0])):
                     prelude.append(Step(PRELUDE_BASE + n_pre + k, s.name, s.actions, s.meta))
             self._event(
-                "resumed", {"skipped_steps": len(steps) - len(remaining), "remaining": len(remaining)}
+                "resumed",
+                {"skipped_steps": len(steps) - len(remaining), "remaining": len(remaining), "run": self._run},
             )
             steps = remaining
         with self._lock:
             self._total = len(steps) + len(prelude)
             self._done = 0
         return steps, prelude
+
+    def _redo(self, ctx: PlanContext, steps: list[Step], remaining: list[Step], done: set[int]) -> list[Step]:
+        """The plan's resume rule (``resume_from``): a resume reruns from that step on, done or not, so
+        that no population mixes two runs. The rerun steps' earlier captures stay in the record, marked
+        by an ``abandoned`` event, and the analysis takes the new attempt's."""
+        rule = getattr(self.plan, "resume_from", None)
+        if rule is None:
+            return remaining
+        assert ctx.session_id is not None
+        first, reason = rule(self.params, ctx, steps, remaining[0])
+        redo = {s.index for s in steps if s.index >= first}
+        ids = [c.id for c in self.record.captures(ctx.session_id) if c.step_index in redo]
+        if ids or redo & done:
+            # every capture of the steps run again, the interrupted one's included: never analysed again
+            self._event("abandoned", {"reason": reason, "steps": sorted(redo & done), "captures": ids})
+        return [s for s in steps if s.index not in done or s.index >= first]
+
+    def _check_progress(self, sid: str, ctx: PlanContext) -> None:
+        """A plan's live gates (``check_progress``): once the step is stored and measured, the plan may
+        stop the session at once (``GateError``) when what it measured cannot be right."""
+        check = getattr(self.plan, "check_progress", None)
+        if check is None:
+            return
+        self._drain()
+        self._check_store()
+        check(self.params, ctx, self._capture_results(sid))
 
     def _connect(self, stack: contextlib.ExitStack) -> None:
         devices = self.devices
@@ -710,7 +768,7 @@ class SessionRunner:
         A step is ``done`` in the record only once everything it captured is stored and measured."""
         self._check_store()
         t0 = time.monotonic()
-        self.record.begin_step(sid, step.index, step.name, dict(step.meta))
+        self.record.begin_step(sid, step.index, step.name, {**step.meta, **self._run_meta()})
         self._event("step_started", {"index": step.index, "name": step.name})
         data: dict[str, Any] = {}
         grabbed: list[tuple[list[Frame], dict[str, Any], int]] = []
@@ -904,7 +962,7 @@ class SessionRunner:
         """In the runner thread (the devices' only user): where the arm is, then the frames."""
         devices = self.devices
         assert devices is not None
-        meta: dict[str, Any] = dict(action.meta)
+        meta: dict[str, Any] = {**action.meta, **self._run_meta()}
         if devices.robot is not None:
             pos = devices.robot.where()
             meta["joints_deg"] = list(pos.joints_deg)
@@ -923,6 +981,10 @@ class SessionRunner:
         frames = devices.camera.grab_many(action.frames)
         self._frames_in_step += len(frames)
         return frames, meta, first
+
+    def _run_meta(self) -> dict[str, int]:
+        """``{"run": n}`` for the n-th resumed run of a session (nothing for its first: unchanged)."""
+        return {"run": self._run} if self._run else {}
 
     def _read_z(self, sensor: DistanceSensor) -> tuple[float | None, str | None]:
         """The distance sensor's reading for a capture: (mm, None), or (None, why) when it has no valid

@@ -183,9 +183,7 @@ def run_session(
             if devices is not None:
                 devices.close_owned()
         assert runner.session_id is not None
-        row = record.get_session(runner.session_id)
-        save_scale_calibration(record, row)
-        return SessionOutcome.of(row)
+        return SessionOutcome.of(record.get_session(runner.session_id))
     finally:
         record.close()
 
@@ -213,19 +211,6 @@ def session_measure_params(
         # record of where that width came from
         cal_doc = record.get_session(str(plan_values["session"])).params.get("scale_calibration")
     return params, cal_doc
-
-
-def save_scale_calibration(record: Record, row: SessionRow) -> None:
-    """After a validation that succeeded: its groove-width estimate becomes the station's scale
-    calibration (``DATA/scale-calibration.json``), used by later sessions."""
-    if (
-        row.kind == "validation"
-        and row.state == "succeeded"
-        and row.results
-        and row.results.get("scale_calibration")
-    ):
-        cal = scal.ScaleCalibration.model_validate(row.results["scale_calibration"])
-        scal.save(cal, scal.station_file(record.data_dir))
 
 
 def _calibration(

@@ -382,8 +382,6 @@ class SessionHost:
         return runner.session_id
 
     def _run(self, runner: SessionRunner) -> None:
-        from station.session import save_scale_calibration
-
         try:
             runner.run()
         except SessionLockError as exc:
@@ -394,9 +392,6 @@ class SessionHost:
         except Exception:
             log.exception("session %s ended with an error", runner.session_id)
             return
-        if runner.session_id is not None:
-            with contextlib.suppress(RecordError, OSError, ValueError):
-                save_scale_calibration(self.record, self.record.get_session(runner.session_id))
 
     # ------------------------------------------------------------------ prompts and the camera
 

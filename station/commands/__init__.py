@@ -14,7 +14,17 @@ Register = Callable[[SubParsers], None]
 
 
 def _core() -> list[Register]:
-    from station.commands import calibrate, camera, measure, run, sessions, sweep, table, validate
+    from station.commands import (
+        calibrate,
+        camera,
+        measure,
+        run,
+        scale_calibration,
+        sessions,
+        sweep,
+        table,
+        validate,
+    )
 
     return [
         measure.register,
@@ -25,6 +35,7 @@ def _core() -> list[Register]:
         run.register,
         sessions.register,
         calibrate.register,
+        scale_calibration.register,
     ]
 
 

@@ -239,22 +239,44 @@ def summary(kind: str, results: dict[str, Any]) -> str:
         return "  no results"
     if kind == "reanalyse":
         return summary(results.get("kind", ""), results.get(results.get("kind", ""), {}))
+    return "\n".join(filter(None, [_kind_summary(kind, results), _checks_summary(results)]))
+
+
+def _um(v: Any, unit: str = "um") -> str:
+    return "-" if v is None else f"{v:.3f} {unit}"
+
+
+def _checks_summary(results: dict[str, Any]) -> str:
+    """The checks that did not pass (a failed ``fail`` check failed the session)."""
+    bad = [c for c in results.get("checks", []) if not c.get("passed")]
+    lines = [
+        f"  check {c['name']} {'FAILED' if c['severity'] == 'fail' else 'warning'}: {c['message']}"
+        for c in bad
+    ]
+    return "\n".join(lines)
+
+
+def _kind_summary(kind: str, results: dict[str, Any]) -> str:
     if kind == "validation":
+        width = results.get("groove_width_mm")
         return (
-            f"  raw (rigid) error mean {results['mean_um']:.3f} um, max {results['max_um']:.3f} um; "
-            f"parallelogram mean {results['parallelogram_mean_um']:.3f} um, "
-            f"max {results['parallelogram_max_um']:.3f} um\n"
-            f"  scale {results['scale']:.6f}: groove width {results['groove_width_mm']:.5f} mm "
-            f"(u {results.get('groove_width_u_mm', float('nan')):.5f} mm)"
+            f"  raw (rigid) error mean {_um(results['mean_um'])}, max {_um(results['max_um'])}; "
+            f"parallelogram mean {_um(results.get('parallelogram_mean_um'))}, "
+            f"max {_um(results.get('parallelogram_max_um'))}\n"
+            f"  scale {results['scale']:.6f}: groove width {_um(width, 'mm')} "
+            f"(u {_um(results.get('groove_width_u_mm'), 'mm')}); {results.get('n_positions')} positions"
+            + (" (partial)" if results.get("partial") else "")
         )
     if kind == "repeatability":
-        lines = [f"  RP (mm) after {results['n_cycles']} cycles:"]
+        lines = [f"  RP (mm), {results['n_cycles']} cycles planned per test:"]
         for test, e in results["tests"].items():
+            n = e.get("n_cycles")
+            count = f"N {n}" + (f" of {e.get('planned_cycles')}, partial" if e.get("partial") else "")
             if "rp_mm" in e:
                 lo, hi = e["rp_ci95_mm"]
-                lines.append(f"    {test:>4}  RP {e['rp_mm']:.5f}  (95 % {lo:.5f}-{hi:.5f})")
+                lines.append(f"    {test:>4}  RP {e['rp_mm']:.5f}  (95 % {lo:.5f}-{hi:.5f})  {count}")
             else:
-                lines.append(f"    {test:>4}  {e.get('error')}")
+                lines.append(f"    {test:>4}  {e.get('error')}  {count if n is not None else ''}".rstrip())
         return "\n".join(lines)
     if kind == "sweep":
         return f"  {len(results['trials'])} trials; best: trial {results['best']}"

@@ -9,12 +9,22 @@ A plan is a typed, validated parameter model plus three functions (see :class:`P
   resuming a session after a crash (skip the steps recorded as done).
 * ``resume_prelude(params, ctx, next_step)`` gives the steps to run before resuming at ``next_step``
   (e.g. return to the reference pose and capture the reference again).
-* ``analyse(params, ctx, captures)`` turns the session's measured captures into its results.
+* ``analyse(params, ctx, captures)`` turns the session's measured captures into its results, with its
+  gates' verdicts in ``results["checks"]`` (``station.plans._gates``): a result that fails a ``fail``
+  check ends the session ``failed``.
 * ``reference_pose(params, ctx)`` says where a session of the plan starts (:class:`ReferencePose`): the
   runner makes the arm's route there from wherever it is the session's first motion
   (:mod:`station.arm_route`; checked in pre-flight from the arm's commanded position), or, for a plan
   that must not move the arm, refuses at pre-flight when it is not there. Steps and resume preludes
   start from that pose.
+
+Two optional methods:
+
+* ``resume_from(params, ctx, steps, next_step) -> (index, reason)``: the plan's resume rule, the first
+  step a resume runs again (done or not), so that a population is never made of two runs (repeatability
+  reruns the interrupted test from its start). Without it a resume continues at ``next_step``.
+* ``check_progress(params, ctx, captures)``: live gates, called once each step is stored and measured;
+  it raises ``GateError`` to stop the session at once when what was measured cannot be right.
 
 Offline plans (``sweep``, ``reanalyse``) have no device actions: their steps carry a :class:`Compute`.
 Plans never touch a concrete driver; the runner executes the actions (architecture: plans and the

@@ -53,6 +53,7 @@ from station.plans import (
     Settle,
     Step,
 )
+from station.plans._calibration_gates import calibration_checks
 
 if TYPE_CHECKING:
     from station.vision import MeasureParams
@@ -429,7 +430,9 @@ class CalibrationPlan:
     ) -> dict[str, Any]:
         from station.calibration_session import analyse_calibration
 
-        return analyse_calibration(params, _cell(ctx), captures)
+        results = analyse_calibration(params, _cell(ctx), captures)
+        results["checks"] = calibration_checks(results)
+        return results
 
 
 CALIBRATION = CalibrationPlan()

@@ -189,11 +189,11 @@ class ReanalysePlan:
             session_id=source.id,
             jobs=ctx.jobs,
         )
-        return {
-            "source_session": source.id,
-            "kind": source.kind,
-            source.kind: plan.analyse(source_params, sub, captures),
-        }
+        inner = plan.analyse(source_params, sub, captures)
+        out: dict[str, Any] = {"source_session": source.id, "kind": source.kind, source.kind: inner}
+        if "checks" in inner:
+            out["checks"] = inner["checks"]  # the source's gates judge the re-analysis too
+        return out
 
 
 def _software() -> str:
