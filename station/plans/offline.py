@@ -2,23 +2,22 @@
 
 * ``sweep``: a stored validation session re-measured over a parameter grid (default: the seed's Table 1
   trials) with the ``station sweep`` core, one step per trial.
-* ``reanalyse``: any stored session measured again with other parameters or software, in a process
-  pool started with ``forkserver`` (never ``fork`` inside the threaded runner), then analysed as its
-  own kind. With the same parameters and software it reproduces the stored results bit for bit.
+* ``reanalyse``: any stored session measured again with other parameters or software, on the
+  session's compute backend (``station.compute``: the local pool by default, or a Dask cluster), then
+  analysed as its own kind. With the same parameters and software it reproduces the stored results
+  bit for bit, on any backend.
 """
 
 from __future__ import annotations
 
-import multiprocessing
 from collections.abc import Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from station.batch import measure_file
+from station.compute import LocalBackend, MeasureBackend
 from station.imagesets import ImageSet
 from station.plans import CaptureResult, Compute, PlanContext, PlanError, Step
 from station.sweep import grid, run_sweep, seed_trials
@@ -34,13 +33,14 @@ def _record(ctx: PlanContext) -> Any:
     return ctx.record
 
 
-def measure_stored(paths: Sequence[Path], params: MeasureParams, jobs: int) -> list[dict[str, Any]]:
-    """Measure stored image files; ``station measure --json`` objects, in order."""
-    if jobs <= 1 or len(paths) < 4:
-        return [measure_file(p, params).to_json() for p in paths]
-    ctx = multiprocessing.get_context("forkserver")
-    with ProcessPoolExecutor(max_workers=min(jobs, len(paths)), mp_context=ctx) as pool:
-        return [r.to_json() for r in pool.map(measure_file, paths, [params] * len(paths))]
+def backend(ctx: PlanContext) -> MeasureBackend:
+    """The session's compute backend; a local pool of ``ctx.jobs`` processes when it has none."""
+    return ctx.compute if ctx.compute is not None else LocalBackend(ctx.jobs)
+
+
+def measure_stored(paths: Sequence[Path], params: MeasureParams, ctx: PlanContext) -> list[dict[str, Any]]:
+    """Measure stored image files on the session's backend; ``station measure --json`` objects, in order."""
+    return [r.to_json() for r in backend(ctx).measure(paths, params, cancelled=ctx.cancelled)]
 
 
 class SweepParams(BaseModel):
@@ -86,7 +86,7 @@ class SweepPlan:
             def run(c: PlanContext, change: dict[str, Any] = change, number: int = number) -> dict[str, Any]:
                 image_set = self.image_set(params, c)
                 trial = run_sweep(
-                    image_set, c.measure_params, [change], jobs=c.jobs, calibration=params.calibration
+                    image_set, c.measure_params, [change], backend=backend(c), calibration=params.calibration
                 )[0]
                 trial_doc: dict[str, Any] = {"number": number, "overrides": change, "error": trial.error}
                 if trial.result is not None:
@@ -151,7 +151,7 @@ class ReanalysePlan:
                 by_id = {cap.id: cap for cap in rec.captures(src)}
                 chunk = [by_id[i] for i in ids]
                 paths = [Path(rec.data_dir) / cap.path for cap in chunk]
-                results = measure_stored(paths, c.measure_params, c.jobs)
+                results = measure_stored(paths, c.measure_params, c)
                 params_doc = c.measure_params.model_dump(mode="json")
                 software = _software()
                 ok = 0
