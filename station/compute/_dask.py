@@ -2,7 +2,8 @@
 or of a ``LocalCluster`` started here (``local:N``).
 
 * **Tasks are batches of frames**, a few per worker and at most ``MAX_BATCH`` frames each; the
-  measurement parameters are scattered once to every worker (``broadcast``), not sent with each task.
+  measurement parameters are one task of their own that every batch depends on: each worker fetches
+  them once, not with each batch (and, unlike scattered data, they survive the loss of every worker).
 * **Frames travel as paths** when the workers share the data directory at the same path (checked on
   every worker before the work starts, and again by each task where it runs: a worker that cannot
   read it is refused by name), or **as bytes** read here (``ship_images``).
@@ -21,9 +22,12 @@ import asyncio
 import contextlib
 import logging
 import os
+import socket
+import threading
 from collections import deque
 from collections.abc import Iterator, Sequence
 from typing import Any
+from urllib.parse import urlsplit
 
 from station.batch import FileResult, display_name, measure_file
 from station.compute import _checks
@@ -134,15 +138,17 @@ class DaskBackend:
         if self._client is not None and self._client.status == "running":
             return self._client
         self._drop_client()
+        n = self._local_workers()
+        if n is None:
+            self._reachable()
         import dask
         from distributed import Client, LocalCluster
 
-        n = self._local_workers()
         if n is not None:
             if self._local is None:
                 with dask.config.set({"distributed.scheduler.allowed-failures": LOCAL_ALLOWED_FAILURES}):
                     self._local = LocalCluster(
-                        n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None
+                        n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0"
                     )
             self._client = Client(self._local, set_as_default=False)
         else:
@@ -161,6 +167,16 @@ class DaskBackend:
         log.info("measuring on %s", self.name)
         self._checked.clear()
         return self._client
+
+    def _reachable(self) -> None:
+        """Fail at once on a refused or unresolvable address (Dask's own connect retries it until its
+        timeout)."""
+        parts = urlsplit(self.cluster)
+        try:
+            with socket.create_connection((parts.hostname or "", parts.port or 0), timeout=self._timeout):
+                pass
+        except OSError as exc:
+            raise _unreachable(self.cluster, f"cannot be reached ({exc.strerror or exc})") from None
 
     def _drop_client(self) -> None:
         client, self._client = self._client, None
@@ -257,7 +273,7 @@ class DaskBackend:
         threads = max(1, sum(client.nthreads().values()))
         todo = deque(batch_ranges(len(work), threads, MAX_BATCH))
         window: deque[tuple[range, dict[int, FileResult], Any]] = deque()
-        params_future = client.scatter(params, broadcast=True, hash=False)
+        params_future = client.submit(_same, params, pure=False, key=_key("params"))
         try:
             while todo or window:
                 while todo and len(window) < 2 * threads:
@@ -372,27 +388,25 @@ class DaskBackend:
         """The batch's results, polling ``check`` and the scheduler's connection while waiting."""
         from distributed import KilledWorker
 
-        while True:
+        done = threading.Event()
+        future.add_done_callback(lambda _: done.set())
+        while not done.wait(POLL_S):
             if check():
                 raise ComputeCancelledError("cancelled: the cluster's tasks for this run were cancelled")
             self._alive(client)
-            finished = future.done()
-            try:
-                results: list[FileResult] = future.result(timeout=POLL_S)
-                return results
-            except TimeoutError as exc:
-                if not finished:
-                    continue  # still running
-                raise ComputeError(f"a task failed on {self.name} (TimeoutError: {exc})") from exc
-            except (KilledWorker, WorkerRefusedError):
-                raise
-            except asyncio.CancelledError:
-                self._alive(client)
-                raise _unreachable(self.cluster, "cancelled the run's tasks (it restarted?)") from None
-            except Exception as exc:
-                raise ComputeError(
-                    f"a task failed on {self.name} ({type(exc).__name__}: {exc}); see the worker's log"
-                ) from exc
+        self._alive(client)
+        try:
+            results: list[FileResult] = future.result()
+        except (KilledWorker, WorkerRefusedError):
+            raise
+        except asyncio.CancelledError:
+            self._alive(client)
+            raise _unreachable(self.cluster, "cancelled the run's tasks (it restarted?)") from None
+        except Exception as exc:
+            raise ComputeError(
+                f"a task failed on {self.name} ({type(exc).__name__}: {exc}); see the worker's log"
+            ) from exc
+        return results
 
 
 def _samples(work: Sequence[Item]) -> dict[str, tuple[str, int]]:
@@ -405,6 +419,12 @@ def _samples(work: Sequence[Item]) -> dict[str, tuple[str, int]]:
                 with contextlib.suppress(OSError):
                     samples[directory] = (item, os.stat(item).st_size)
     return samples
+
+
+def _same(params: MeasureParams) -> MeasureParams:
+    """The parameters' task: each worker fetches its result once and keeps it for every batch; unlike
+    scattered data, the scheduler can compute it again when every worker holding it has died."""
+    return params
 
 
 def _key(kind: str) -> str:
