@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -75,7 +76,11 @@ def validate(
         raise ValidationError(f"calibration {calibration!r} is not one of {', '.join(CALIBRATIONS)}")
     if image_set.displacements_um is None:
         raise ValidationError(f"{image_set.root}: no displacements.csv: not a validation set")
-    results = tuple((backend or LocalBackend(jobs)).measure(image_set.files, params))
+    if backend is None:
+        with contextlib.closing(LocalBackend(jobs)) as local:
+            results = tuple(local.measure(image_set.files, params))
+    else:
+        results = tuple(backend.measure(image_set.files, params))
     used = np.array([r.ok for r in results])
     if used.sum() < 3:
         raise ValidationError(

@@ -40,6 +40,7 @@ from station.compute._errors import (
 )
 from station.compute._tasks import ImageBytes, Item, MeasureOne, item_name, measure_batch, worker_died
 from station.imageio import DEFAULT_MAX_BYTES, ImageFileError, ImageLimits, read_file_bytes
+from station.runtime import tune_allocator
 from station.vision import MeasureParams
 
 log = logging.getLogger(__name__)
@@ -48,8 +49,16 @@ MAX_BATCH = 64
 POLL_S = 0.1
 #: How long to wait for the scheduler to answer, and for a first worker to join it (s).
 CONNECT_TIMEOUT_S = 10.0
-#: ``local:N``: a frame's batch may kill one worker and be tried again; a second death ends it.
-LOCAL_ALLOWED_FAILURES = 1
+#: ``local:N``'s Dask configuration (README, "Sizing": what a lab's workers should run with too):
+#: a frame's batch may kill one worker and be tried again, a second death ends it; no statistical
+#: profiler sampling every worker's stack 100 times a second, and the event loops' health check every
+#: second instead of every 20 ms (together, 60 % of an idle LocalCluster's CPU, and threads that take the
+#: GIL from the measurement).
+LOCAL_CONFIG = {
+    "distributed.scheduler.allowed-failures": 1,
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.tick.interval": "1s",
+}
 
 
 def _unreachable(address: str, why: str) -> ClusterUnavailableError:
@@ -74,7 +83,9 @@ def run_batch(
     samples: _checks.Samples,
 ) -> list[FileResult]:
     """The task, on a worker: refuse if this worker cannot read the batch's directories as the client
-    does, else measure the batch."""
+    does, else measure the batch (in a process whose allocator keeps image buffers, as the station's
+    own processes do: ``station.runtime``)."""
+    tune_allocator()
     dirs = {os.path.dirname(item) for item in items if isinstance(item, str)}
     problems = _checks.unreadable({d: s for d, s in samples.items() if d in dirs})
     if problems:
@@ -146,7 +157,7 @@ class DaskBackend:
 
         if n is not None:
             if self._local is None:
-                with dask.config.set({"distributed.scheduler.allowed-failures": LOCAL_ALLOWED_FAILURES}):
+                with dask.config.set(LOCAL_CONFIG):
                     self._local = LocalCluster(
                         n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0"
                     )

@@ -8,7 +8,7 @@ that process too gets a ``worker_died`` error; then a new pool takes the rest.
 Tasks are batches of frames (see :func:`~station.compute._backend.batch_ranges`): one pickled call
 per batch rather than per frame. The pool's processes come from a fork server that has imported the
 measurement already (never ``fork`` from a threaded process such as the session runner), so a new
-process costs a fork, not an import.
+process costs a fork, not an import; the pool lasts until ``close()``.
 """
 
 from __future__ import annotations
@@ -24,9 +24,10 @@ from typing import Any
 
 from station.batch import FileResult, measure_file
 from station.compute._backend import Cancelled, Frames, OnResult, as_items, batch_ranges, never
-from station.compute._errors import ComputeCancelledError
+from station.compute._errors import ComputeCancelledError, ComputeError
 from station.compute._tasks import Item, MeasureOne, item_name, measure_batch, measure_item, worker_died
 from station.imageio import ImageLimits
+from station.runtime import tune_allocator
 from station.vision import MeasureParams
 
 log = logging.getLogger(__name__)
@@ -38,10 +39,16 @@ POLL_S = 0.1
 
 
 def pool_context() -> BaseContext:
-    """The fork server's context, preloading the measurement (set before its first use)."""
+    """The fork server's context. The server imports the caller's main module and the measurement once
+    (set before its first use); each pool process is a fork of it that imports nothing more."""
     ctx = multiprocessing.get_context("forkserver")
-    ctx.set_forkserver_preload(["station.compute._tasks"])
+    ctx.set_forkserver_preload(["__main__", "station.compute._tasks"])
     return ctx
+
+
+def _pool(workers: int) -> ProcessPoolExecutor:
+    """Processes whose allocator keeps image buffers, as the station's own do (``station.runtime``)."""
+    return ProcessPoolExecutor(workers, mp_context=pool_context(), initializer=tune_allocator)
 
 
 def _wait(future: Future[Any], cancelled: Cancelled) -> None:
@@ -51,11 +58,16 @@ def _wait(future: Future[Any], cancelled: Cancelled) -> None:
         wait([future], timeout=POLL_S, return_when=FIRST_COMPLETED)
 
 
+def _ready() -> bool:
+    return True
+
+
 class LocalBackend:
     """``jobs`` processes on this machine (1: in this process, no pool).
 
-    ``measure_one`` measures a file by path (``measure_file``; tests inject one that crashes as a
-    decoder might).
+    The pool is started on the first run that needs it and kept for the next ones (a session measures
+    chunk after chunk) until ``close()``. ``measure_one`` measures a file by path (``measure_file``;
+    tests inject one that crashes as a decoder might).
     """
 
     def __init__(self, jobs: int = 1, *, measure_one: MeasureOne = measure_file) -> None:
@@ -63,13 +75,20 @@ class LocalBackend:
             raise ValueError(f"jobs must be at least 1, got {jobs}")
         self.jobs = jobs
         self._measure_one = measure_one
+        self._pool: ProcessPoolExecutor | None = None
 
     @property
     def name(self) -> str:
         return "this process" if self.jobs == 1 else f"a local pool of {self.jobs} processes"
 
     def close(self) -> None:
-        """Nothing to free: each run's pool ends with the run."""
+        """End the pool's processes (a batch still running is finished first)."""
+        self._drop_pool()
+
+    def _drop_pool(self) -> None:
+        pool, self._pool = self._pool, None
+        if pool is not None:
+            pool.shutdown(wait=False, cancel_futures=True)
 
     def measure(
         self,
@@ -97,14 +116,15 @@ class LocalBackend:
                     raise ComputeCancelledError("cancelled: the frames not yet measured were dropped")
                 yield measure_item(item, params, limits, self._measure_one)
             return
-        workers = min(self.jobs, len(work))
-        todo = deque(batch_ranges(len(work), workers, MAX_BATCH))
+        todo = deque(batch_ranges(len(work), self.jobs, MAX_BATCH))
         while todo:
+            if self._pool is None:
+                self._pool = _pool(self.jobs)
+            pool = self._pool
             window: deque[tuple[range, Future[list[FileResult]]]] = deque()
-            pool = ProcessPoolExecutor(max_workers=workers, mp_context=pool_context())
             try:
                 while todo or window:
-                    while todo and len(window) < 2 * workers:
+                    while todo and len(window) < 2 * self.jobs:
                         batch = todo.popleft()
                         chunk = work[batch.start : batch.stop]
                         window.append(
@@ -116,8 +136,10 @@ class LocalBackend:
                     yield from results
             except BrokenProcessPool:
                 log.warning("a worker process died; measuring the frames it may have held one by one")
+                self._drop_pool()
             finally:
-                pool.shutdown(wait=False, cancel_futures=True)
+                for _, future in window:  # cancelled, stopped early, or the pool broke
+                    future.cancel()
             for batch, future in window:
                 if future.done() and not future.cancelled() and future.exception() is None:
                     yield from future.result()
@@ -127,11 +149,17 @@ class LocalBackend:
     def _alone(
         self, suspects: Sequence[Item], params: MeasureParams, limits: ImageLimits | None, check: Cancelled
     ) -> Iterator[FileResult]:
-        """Each suspect of a dead worker once more, alone in one process (a new one after a death)."""
+        """Each suspect of a dead worker once more, alone in one process (a new one after a death).
+
+        A process that cannot even start (the caller's script starts processes at import: it lacks an
+        ``if __name__ == "__main__":`` guard) is the run's error, not every frame's.
+        """
         pool: ProcessPoolExecutor | None = None
         try:
             for item in suspects:
-                pool = pool or ProcessPoolExecutor(max_workers=1, mp_context=pool_context())
+                if pool is None:
+                    pool = _pool(1)
+                    self._check_starts(pool)
                 future = pool.submit(measure_item, item, params, limits, self._measure_one)
                 try:
                     _wait(future, check)
@@ -144,3 +172,14 @@ class LocalBackend:
         finally:
             if pool is not None:
                 pool.shutdown(wait=False, cancel_futures=True)
+
+    @staticmethod
+    def _check_starts(pool: ProcessPoolExecutor) -> None:
+        try:
+            pool.submit(_ready).result()
+        except BrokenProcessPool:
+            pool.shutdown(wait=False)
+            raise ComputeError(
+                "the local pool's processes die before measuring anything: a script that uses several "
+                'jobs must guard its top level with `if __name__ == "__main__":` (or use --jobs 1)'
+            ) from None

@@ -10,6 +10,7 @@
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any, Literal
@@ -17,7 +18,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from station.compute import LocalBackend, MeasureBackend
+from station.compute import LocalBackend
 from station.imagesets import ImageSet
 from station.plans import CaptureResult, Compute, PlanContext, PlanError, Step
 from station.sweep import grid, run_sweep, seed_trials
@@ -33,14 +34,13 @@ def _record(ctx: PlanContext) -> Any:
     return ctx.record
 
 
-def backend(ctx: PlanContext) -> MeasureBackend:
-    """The session's compute backend; a local pool of ``ctx.jobs`` processes when it has none."""
-    return ctx.compute if ctx.compute is not None else LocalBackend(ctx.jobs)
-
-
 def measure_stored(paths: Sequence[Path], params: MeasureParams, ctx: PlanContext) -> list[dict[str, Any]]:
-    """Measure stored image files on the session's backend; ``station measure --json`` objects, in order."""
-    return [r.to_json() for r in backend(ctx).measure(paths, params, cancelled=ctx.cancelled)]
+    """Measure stored image files on the session's backend (else a local pool of ``ctx.jobs``);
+    ``station measure --json`` objects, in order."""
+    if ctx.compute is not None:
+        return [r.to_json() for r in ctx.compute.measure(paths, params, cancelled=ctx.cancelled)]
+    with contextlib.closing(LocalBackend(ctx.jobs)) as local:
+        return [r.to_json() for r in local.measure(paths, params, cancelled=ctx.cancelled)]
 
 
 class SweepParams(BaseModel):
@@ -86,7 +86,12 @@ class SweepPlan:
             def run(c: PlanContext, change: dict[str, Any] = change, number: int = number) -> dict[str, Any]:
                 image_set = self.image_set(params, c)
                 trial = run_sweep(
-                    image_set, c.measure_params, [change], backend=backend(c), calibration=params.calibration
+                    image_set,
+                    c.measure_params,
+                    [change],
+                    jobs=c.jobs,
+                    backend=c.compute,
+                    calibration=params.calibration,
                 )[0]
                 trial_doc: dict[str, Any] = {"number": number, "overrides": change, "error": trial.error}
                 if trial.result is not None:

@@ -32,9 +32,16 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
+#: What README's "A lab's archive on a Dask cluster" tells a lab to run its scheduler and workers with.
+LAB_ENV = {
+    "DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED": "False",
+    "DASK_DISTRIBUTED__ADMIN__TICK__INTERVAL": "1s",
+}
+
+
 def _env(**extra: str) -> dict[str, str]:
     # the tests' own modules (tests.poison) importable on the workers, as the project is
-    env = {**os.environ, "PYTHONPATH": str(ROOT), **extra}
+    env = {**os.environ, **LAB_ENV, "PYTHONPATH": str(ROOT), **extra}
     env.pop("PYTEST_CURRENT_TEST", None)
     return env
 

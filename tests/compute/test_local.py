@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -54,3 +56,23 @@ def test_cancelling_stops_the_run_and_says_so(frames: list[Path], reference: lis
         list(run)
     assert 3 <= len(got) < len(frames)
     assert lines(got) == reference[: len(got)]
+
+
+def test_a_script_without_a_main_guard_gets_one_clear_error_not_a_worker_died_per_frame(
+    tmp_path: Path, frames: list[Path]
+) -> None:
+    script = tmp_path / "unguarded.py"
+    script.write_text(
+        "from station.compute import LocalBackend\n"
+        "from station.vision import MeasureParams\n"
+        f"files = {[str(f) for f in frames[:8]]!r}\n"
+        "print([r.code for r in LocalBackend(2).measure(files, MeasureParams())])\n",
+        encoding="utf-8",
+    )
+    done = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, timeout=120, check=False
+    )
+    assert done.returncode == 1
+    assert "worker_died" not in done.stdout
+    assert "ComputeError: the local pool's processes die before measuring anything" in done.stderr
+    assert 'guard its top level with `if __name__ == "__main__":`' in done.stderr
