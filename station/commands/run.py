@@ -207,6 +207,8 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         print(f"session {outcome.id} ({outcome.kind}): {outcome.state}")
         if outcome.error:
             print(f"  {outcome.error}")
+        if outcome.state in ("failed", "aborted", "stopped", "interrupted"):
+            print(f"  continue it after its last completed step: station run --resume {outcome.id}")
         print(summary(outcome.kind, outcome.results))
     if received:
         return signals[received[0]]

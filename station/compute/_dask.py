@@ -137,7 +137,9 @@ class DaskBackend:
     @property
     def name(self) -> str:
         n = self._local_workers()
-        return f"a Dask LocalCluster of {n} workers" if n else f"the Dask cluster at {self.cluster}"
+        if n is None:
+            return f"the Dask cluster at {self.cluster}"
+        return f"a Dask LocalCluster of {n} worker{'s' if n > 1 else ''}"
 
     def _local_workers(self) -> int | None:
         return int(self.cluster.split(":", 1)[1]) if self.cluster.startswith("local:") else None

@@ -9,6 +9,7 @@ stored session), whatever the cluster went through.
 from __future__ import annotations
 
 import json
+import logging
 import os
 import signal
 import subprocess
@@ -221,3 +222,27 @@ def test_a_scheduler_that_goes_away_mid_run_is_a_clear_error(frames: list[Path])
     assert f"the Dask scheduler at {solo.address}" in str(exc.value)
     assert "--cluster local" in str(exc.value)
     assert 1 <= len(got) < len(frames)
+
+
+def test_the_service_reanalyses_on_the_configured_cluster(
+    stored: StoredSession, tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    from station.worker import SessionHost, WorkerSpec
+
+    caplog.set_level(logging.INFO, logger="station.compute")
+    config = tmp_path / "station.toml"
+    config.write_text(
+        'name = "a465-lab-1"\n[camera]\ndriver = "v4l2"\noptions = { device = "/dev/video9" }\n'
+        '[compute]\ncluster = "local:1"\n',
+        encoding="utf-8",
+    )
+    host = SessionHost(WorkerSpec(config=config, data=stored.data), send=lambda message: None)
+    try:
+        assert isinstance(host.compute, DaskBackend)
+        assert host.compute.name == "a Dask LocalCluster of 1 worker"
+        sid = host.rpc_create("reanalyse", {"session": stored.id}, {})  # as POST /sessions does
+        assert host.rpc_wait(240)
+    finally:
+        host.shutdown()
+    assert measured(stored.data, sid) == measured(stored.data, stored.id)
+    assert "measuring on a Dask LocalCluster of 1 worker" in caplog.messages  # where it measured

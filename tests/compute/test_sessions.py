@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import pytest
 
+from station.cli import main
 from station.compute import ComputeSpec
 from station.session import run_session
 from tests.compute.cluster import free_port
@@ -37,3 +38,23 @@ def test_a_scheduler_that_cannot_be_reached_fails_the_session_which_then_resumes
     assert (resumed.id, resumed.state) == (failed.id, "succeeded")
     assert same_results(resumed.results["validation"], stored.results)
     assert measured(stored.data, resumed.id) == measured(stored.data, stored.id)
+
+
+def test_station_run_says_why_the_cluster_failed_and_how_to_continue(
+    stored: StoredSession, capsys: pytest.CaptureFixture[str]
+) -> None:
+    gone = f"tcp://127.0.0.1:{free_port()}"
+    argv = [
+        "run",
+        "reanalyse",
+        "--param",
+        f"session={stored.id}",
+        "--data",
+        str(stored.data),
+        "--cluster",
+        gone,
+    ]
+    assert main(argv) == 1
+    out = capsys.readouterr().out
+    assert f"the Dask scheduler at {gone} cannot be reached" in out
+    assert "station run --resume " in out
