@@ -25,22 +25,22 @@ import os
 import socket
 import threading
 from collections import deque
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 from typing import Any
 from urllib.parse import urlsplit
 
 from station.batch import FileResult, display_name, measure_file
-from station.compute import _checks
 from station.compute._backend import Cancelled, Frames, OnResult, as_items, batch_ranges, never
+from station.compute._checks import Samples
 from station.compute._errors import (
     ClusterUnavailableError,
     ComputeCancelledError,
     ComputeError,
     WorkerRefusedError,
 )
-from station.compute._tasks import ImageBytes, Item, MeasureOne, item_name, measure_batch, worker_died
+from station.compute._tasks import ImageBytes, Item, MeasureOne, item_name, worker_died
+from station.compute._workers import admit, run_batch, same_params, samples_of, worker_names
 from station.imageio import DEFAULT_MAX_BYTES, ImageFileError, ImageLimits, read_file_bytes
-from station.runtime import tune_allocator
 from station.vision import MeasureParams
 
 log = logging.getLogger(__name__)
@@ -66,37 +66,6 @@ def _unreachable(address: str, why: str) -> ClusterUnavailableError:
         f"the Dask scheduler at {address} {why}: start it (`dask scheduler`) and its workers (`dask worker "
         f"{address}`), check the address and the firewall, or measure here with --cluster local"
     )
-
-
-def _this_worker() -> str:
-    from distributed import get_worker
-
-    worker = get_worker()
-    return f"worker {worker.name!r} at {worker.address}"
-
-
-def run_batch(
-    items: Sequence[Item],
-    params: MeasureParams,
-    limits: ImageLimits | None,
-    measure_one: MeasureOne,
-    samples: _checks.Samples,
-) -> list[FileResult]:
-    """The task, on a worker: refuse if this worker cannot read the batch's directories as the client
-    does, else measure the batch (in a process whose allocator keeps image buffers, as the station's
-    own processes do: ``station.runtime``)."""
-    tune_allocator()
-    dirs = {os.path.dirname(item) for item in items if isinstance(item, str)}
-    problems = _checks.unreadable({d: s for d, s in samples.items() if d in dirs})
-    if problems:
-        raise WorkerRefusedError(f"{_this_worker()} {'; '.join(problems)}{_SHARE_HINT}")
-    return measure_batch(items, params, limits, measure_one)
-
-
-_SHARE_HINT = (
-    ": mount the data directory at the same path on every worker (the lab's network share), or send "
-    "the frames with --ship-images"
-)
 
 
 @contextlib.contextmanager
@@ -209,51 +178,6 @@ class DaskBackend:
         if client.status != "running":
             raise _unreachable(self.cluster, "went away during the run; its tasks are lost")
 
-    # ------------------------------------------------------------------ checks
-
-    def _workers(self, client: Any) -> dict[str, str]:
-        """address -> how errors name the worker."""
-        info = client.scheduler_info(n_workers=-1)["workers"]
-        return {addr: f"worker {w.get('name', addr)!r} at {addr}" for addr, w in info.items()}
-
-    def _check_workers(self, client: Any, samples: _checks.Samples) -> None:
-        """Every worker not yet checked for these directories reads them as here and runs the same
-        software; WorkerRefusedError naming each one that does not."""
-        workers = self._workers(client)
-        todo = [a for a in workers if a not in self._checked or not set(samples) <= self._checked[a]]
-        if not todo:
-            return
-        reports = client.run(_checks.probe, samples, workers=todo, on_error="return")
-        mine = _checks.fingerprint()
-        problems = []
-        for addr, report in sorted(reports.items()):
-            who = workers.get(addr, f"worker at {addr}")
-            if isinstance(report, OSError | TimeoutError):  # it left (or died) since it was listed
-                log.info("%s did not answer the check (%s): it gets no work until it does", who, report)
-                continue
-            if isinstance(report, BaseException):
-                problems.append(
-                    f"{who} cannot run the station's measurement ({type(report).__name__}: {report}): "
-                    "start `dask worker` in the station's environment (the project installed with "
-                    "constraints.txt)"
-                )
-                continue
-            found = []
-            differs = _checks.software_differences(mine, report["software"])
-            if differs:
-                found.append(
-                    f"{who} has {', '.join(differs)}: its numbers would not be the station's; install the "
-                    "project with constraints.txt there"
-                )
-            if report["unreadable"]:
-                found.append(f"{who} {'; '.join(report['unreadable'])}{_SHARE_HINT}")
-            if found:
-                problems.extend(found)
-            else:
-                self._checked.setdefault(addr, set()).update(samples)
-        if problems:
-            raise WorkerRefusedError("; ".join(problems))
-
     # ------------------------------------------------------------------ measuring
 
     def measure(
@@ -281,12 +205,12 @@ class DaskBackend:
         self, work: list[Item], params: MeasureParams, limits: ImageLimits | None, check: Cancelled
     ) -> Iterator[tuple[int, FileResult]]:
         client = self.client()
-        samples = {} if self.ship_images else _samples(work)
-        self._check_workers(client, samples)
+        samples = {} if self.ship_images else samples_of(work)
+        admit(client, samples, self._checked)
         threads = max(1, sum(client.nthreads().values()))
         todo = deque(batch_ranges(len(work), threads, MAX_BATCH))
         window: deque[tuple[range, dict[int, FileResult], Any]] = deque()
-        params_future = client.submit(_same, params, pure=False, key=_key("params"))
+        params_future = client.submit(same_params, params, pure=False, key=_key("params"))
         try:
             while todo or window:
                 while todo and len(window) < 2 * threads:
@@ -299,8 +223,8 @@ class DaskBackend:
                 )
                 window.popleft()
                 yield from zip(batch, results, strict=True)
-                if todo and set(self._workers(client)) - set(self._checked):
-                    self._check_workers(client, samples)  # a worker joined: check it before it gets work
+                if todo and set(worker_names(client)) - set(self._checked):
+                    admit(client, samples, self._checked)  # a worker joined: check it before it gets work
         finally:
             pending = [f for _, _, f in window if f is not None]
             if client.status == "running":
@@ -314,7 +238,7 @@ class DaskBackend:
         batch: range,
         params_future: Any,
         limits: ImageLimits | None,
-        samples: _checks.Samples,
+        samples: Samples,
     ) -> tuple[dict[int, FileResult], Any]:
         """Send one batch; with ``ship_images`` its files are read here first, and a file that cannot
         be read is that frame's error without a task."""
@@ -369,7 +293,7 @@ class DaskBackend:
         ``worker_died``."""
         from distributed import KilledWorker
 
-        samples = {} if self.ship_images else _samples(items)
+        samples = {} if self.ship_images else samples_of(items)
         futures = [
             client.submit(
                 run_batch,
@@ -420,24 +344,6 @@ class DaskBackend:
                 f"a task failed on {self.name} ({type(exc).__name__}: {exc}); see the worker's log"
             ) from exc
         return results
-
-
-def _samples(work: Sequence[Item]) -> dict[str, tuple[str, int]]:
-    """For each directory of the frames, its first frame that exists here and its size."""
-    samples: dict[str, tuple[str, int]] = {}
-    for item in work:
-        if isinstance(item, str):
-            directory = os.path.dirname(item)
-            if directory not in samples:
-                with contextlib.suppress(OSError):
-                    samples[directory] = (item, os.stat(item).st_size)
-    return samples
-
-
-def _same(params: MeasureParams) -> MeasureParams:
-    """The parameters' task: each worker fetches its result once and keeps it for every batch; unlike
-    scattered data, the scheduler can compute it again when every worker holding it has died."""
-    return params
 
 
 def _key(kind: str) -> str:
