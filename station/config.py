@@ -22,6 +22,7 @@ import numpy.typing as npt
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from station._pydantic import problems as describe
+from station.compute import CLUSTER_HELP, ComputeSpec, parse_cluster
 from station.devices import Camera, DistanceSensor, Robot, XYTable
 from station.prompts import PromptBroker
 from station.redaction import redact
@@ -182,6 +183,37 @@ class ApiConfig(BaseModel):
     open_reads: bool = Field(True, description="GET endpoints without a token while bound to loopback")
 
 
+class ComputeConfig(BaseModel):
+    """Where offline sessions measure (``[compute]``; ``station.compute``)::
+
+        [compute]
+        cluster = "tcp://10.0.0.5:8786"   # a Dask scheduler; "local" (default) or "local:4"
+        ship_images = false               # true: send the frames' bytes (workers without the share)
+
+    ``station run --cluster`` overrides it for one session; the service uses it for every re-analysis
+    and sweep started from the API or the page.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    cluster: str = Field("local", description=CLUSTER_HELP)
+    ship_images: bool = Field(False, description="send the frames' bytes to the workers")
+
+    @field_validator("cluster")
+    @classmethod
+    def _known_cluster(cls, v: str) -> str:
+        return parse_cluster(v)
+
+    @model_validator(mode="after")
+    def _ship_needs_cluster(self) -> ComputeConfig:
+        self.spec()  # ValueError for ship_images without a cluster
+        return self
+
+    def spec(self, jobs: int = 1) -> ComputeSpec:
+        """The backend this section names (the local pool with ``jobs`` processes)."""
+        return ComputeSpec(self.cluster, jobs, self.ship_images)
+
+
 class CalibrationConfig(BaseModel):
     """What the calibration plan must know of the cell (``[calibration]``)::
 
@@ -273,6 +305,9 @@ class StationConfig(BaseModel):
         [measure]
         mode = "precise"
 
+        [compute]
+        cluster = "tcp://10.0.0.5:8786"
+
     Relative paths are taken from the file's folder.
     """
 
@@ -288,6 +323,9 @@ class StationConfig(BaseModel):
     measure: dict[str, Any] = Field(default_factory=dict, description="measurement parameters (--set)")
     scale_calibration: Path | None = Field(None, description="a scale calibration JSON file")
     api: ApiConfig = Field(default_factory=ApiConfig, description="the service's access control")
+    compute: ComputeConfig = Field(
+        default_factory=ComputeConfig, description="where offline sessions measure"
+    )
     calibration: CalibrationConfig | None = Field(None, description="the kinematic calibration's cell")
 
     def snapshot(self) -> dict[str, Any]:

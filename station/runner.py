@@ -53,6 +53,7 @@ from pydantic import BaseModel
 from station import __version__, scale_calibration
 from station.arm_route import TO_REFERENCE_HINT, describe_offset, go_to_reference, max_step_of, plan_route
 from station.batch import measure_file
+from station.compute import ComputeError, MeasureBackend
 from station.config import StationDevices
 from station.devices import (
     DeviceError,
@@ -210,6 +211,10 @@ class SessionRunner:
     resume_session
         An interrupted (or stopped, failed, aborted) session to continue; ``plan`` and ``params`` must
         be its own.
+    jobs, compute
+        Where offline plans measure: ``compute`` (a backend of ``station.compute``, owned by the
+        caller, which closes it), else a local pool of ``jobs`` processes. A backend's failure (its
+        cluster gone) fails the session, which can then be resumed.
     """
 
     def __init__(
@@ -223,6 +228,7 @@ class SessionRunner:
         scale_calibration: dict[str, Any] | None = None,
         resume_session: SessionRow | None = None,
         jobs: int = 1,
+        compute: MeasureBackend | None = None,
         station: str = "default",
         config_snapshot: dict[str, Any] | None = None,
     ) -> None:
@@ -236,6 +242,7 @@ class SessionRunner:
         self.measure_params = measure_params or MeasureParams()
         self.scale_calibration = scale_calibration
         self.jobs = jobs
+        self.compute = compute
         self._station = station
         self._config_snapshot = config_snapshot
         self._resume = resume_session
@@ -474,7 +481,7 @@ class SessionRunner:
                 final = RunnerState.FAILED
                 self._fail(exc)
                 self._analyse(sid, ctx, keep_going=True)
-        except (DeviceError, RecordError, PlanError, SessionError, OSError, ValueError) as exc:
+        except (DeviceError, RecordError, PlanError, SessionError, ComputeError, OSError, ValueError) as exc:
             final = RunnerState.ABORTED if self._abort else RunnerState.FAILED
             self._fail(exc)
             self._analyse(sid, ctx, keep_going=True)
@@ -569,6 +576,8 @@ class SessionRunner:
             session_id=sid,
             jobs=self.jobs,
             calibration=calibration_cell(devices, self.measure_params),
+            compute=self.compute,
+            cancelled=lambda: self._abort,
         )
 
     def _steps(self, ctx: PlanContext) -> tuple[list[Step], list[Step]]:

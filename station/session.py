@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from station import scale_calibration as scal
+from station.compute import ComputeSpec, open_backend
 from station.config import (
     ConfigurationError,
     StationConfig,
@@ -120,6 +121,7 @@ def run_session(
     database: str | None = None,
     resume: str | None = None,
     jobs: int = 1,
+    compute: ComputeSpec | None = None,
     on_event: Callable[[EventRow], None] | None = None,
     on_runner: Callable[[SessionRunner], None] | None = None,
 ) -> SessionOutcome:
@@ -128,6 +130,8 @@ def run_session(
     ``sim``: the simulated station (``True``, or a mapping of ``build_sim_station`` options);
     ``config``: a station configuration file or model; offline plans (sweep, reanalyse) need neither.
     ``params``: the plan's parameters; ``assignments``: measurement parameters (``--set``).
+    ``compute``: where offline plans measure (``station.compute``); default: the configuration's
+    ``[compute]``, else a local pool of ``jobs`` processes.
     ``on_runner`` gets the runner before it runs (to pause, stop or abort it from another thread).
     """
     cfg = config if isinstance(config, StationConfig) or config is None else load_config(config)
@@ -161,6 +165,8 @@ def run_session(
         elif plan.needs:
             assert cfg is not None  # checked above
             devices = build_station(cfg)
+        spec = compute or (cfg.compute.spec(jobs) if cfg is not None else ComputeSpec(jobs=jobs))
+        backend = open_backend(spec)
         try:
             runner = SessionRunner(
                 record,
@@ -171,6 +177,7 @@ def run_session(
                 scale_calibration=cal_doc,
                 resume_session=previous,
                 jobs=jobs,
+                compute=backend,
                 station=(devices.config.name if devices is not None else (cfg.name if cfg else "default")),
             )
             if on_event is not None:
@@ -180,6 +187,7 @@ def run_session(
             with terminal_prompts(devices) if devices is not None else contextlib.nullcontext():
                 runner.run()
         finally:
+            backend.close()
             if devices is not None:
                 devices.close_owned()
         assert runner.session_id is not None

@@ -45,6 +45,7 @@ from multiprocessing.connection import Connection, Pipe
 from pathlib import Path
 from typing import Any
 
+from station.compute import ComputeSpec, open_backend
 from station.plans import get_plan, parse_params
 from station.prompts import Prompt, PromptAnswer, PromptBroker, PromptEvent
 from station.record import EventRow, RecordError, SessionLockError, lock_holder, station_lock
@@ -196,6 +197,10 @@ class SessionHost:
         self._prompt_watch: threading.Thread | None = None
         self._prompt_events: list[PromptEvent] = []
         self._prompt_cond = threading.Condition()
+        # where re-analyses and sweeps measure: the configuration's [compute] (a cluster is reached
+        # on the first session that needs it, and again after it was lost)
+        cfg = self.station_config
+        self.compute = open_backend(cfg.compute.spec() if cfg is not None else ComputeSpec())
         if self.devices is not None:
             self.devices.broker.subscribe(self._on_prompt_event)
             self._prompt_watch = threading.Thread(target=self._forward_prompts, name="prompts", daemon=True)
@@ -287,7 +292,7 @@ class SessionHost:
                 measure_params=measure_params,
                 scale_calibration=cal_doc,
                 station=self._station_name(),
-                jobs=1,
+                compute=self.compute,
             )
         )
 
@@ -309,6 +314,7 @@ class SessionHost:
                 scale_calibration=row.params.get("scale_calibration"),
                 resume_session=row,
                 station=self._station_name(),
+                compute=self.compute,
             )
         )
 
@@ -538,6 +544,7 @@ class SessionHost:
                         self._send(("event", event, status))
         if self.devices is not None:
             self.devices.close_owned()
+        self.compute.close()
         self.record.close()
 
 

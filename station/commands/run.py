@@ -17,7 +17,9 @@ import threading
 from collections.abc import Sequence
 from typing import Any
 
+from station.batch import max_jobs
 from station.commands import SubParsers
+from station.commands._common import add_compute_options, bounded_int, compute_spec
 from station.config import ConfigurationError
 from station.devices import DeviceError
 from station.plans import PLAN_NAMES, PlanError
@@ -64,7 +66,14 @@ def register(sub: SubParsers) -> None:
         metavar="NAME=VALUE",
         help="measurement parameter (as in station measure)",
     )
-    p.add_argument("-j", "--jobs", type=int, default=1, help="worker processes for sweep and reanalyse")
+    p.add_argument(
+        "-j",
+        "--jobs",
+        type=bounded_int("--jobs", 1, max_jobs()),
+        default=None,
+        help=f"local worker processes for sweep and reanalyse, 1 to {max_jobs()} (default 1)",
+    )
+    add_compute_options(p)
     p.add_argument("--json", action="store_true", help="print the outcome as one JSON object (last line)")
     p.add_argument("--report", action="store_true", help="write the session's report and print where")
     add_record_options(p)
@@ -133,13 +142,12 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
 
     if (args.kind is None) == (args.resume is None):
         usage("give a session kind, or --resume ID (not both)")
-    if args.jobs < 1:
-        usage(f"--jobs must be at least 1, got {args.jobs}")
     try:
+        compute = compute_spec(parser, args, jobs=1)
         params = parse_params(parser, args.param)
     except SystemExit:
         if args.json:
-            print(failed_outcome(args.kind, args.resume, "a --param is not NAME=VALUE (see above)"))
+            print(failed_outcome(args.kind, args.resume, "a usage error (see above)"))
         raise
     try:
         assignments = dict(parse_assignments(args.assignments))
@@ -170,7 +178,8 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
                     data=args.data,
                     database=args.database,
                     resume=args.resume,
-                    jobs=args.jobs,
+                    jobs=args.jobs or 1,
+                    compute=compute,
                     on_event=progress,
                     on_runner=runners.append,
                 )
@@ -227,6 +236,8 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         print(f"session {outcome.id} ({outcome.kind}): {outcome.state}")
         if outcome.error:
             print(f"  {outcome.error}")
+        if outcome.state in ("failed", "aborted", "stopped", "interrupted"):
+            print(f"  continue it after its last completed step: station run --resume {outcome.id}")
         print(summary(outcome.kind, outcome.results))
     if received:
         return signals[received[0]]

@@ -42,6 +42,7 @@ from pydantic import BaseModel
 from station._pydantic import problems as describe
 
 if TYPE_CHECKING:
+    from station.compute import MeasureBackend
     from station.plans.calibration import CalibrationCell
     from station.record import Record
     from station.vision import MeasureParams
@@ -190,7 +191,10 @@ class PlanContext:
     ``camera_height_mm``: height of the camera's front above the artifact plane for given joints, when
     the robot's configuration says where both are (used to choose move directions away from the
     artifact). ``measure_params``: the session's measurement parameters. ``record``: the record (offline
-    plans read stored sessions from it). ``jobs``: worker processes for offline plans.
+    plans read stored sessions from it). ``jobs``: worker processes for offline plans when no
+    ``compute`` backend is given. ``compute``: where offline plans measure (the local pool, a Dask
+    cluster; see ``station.compute``). ``cancelled``: true once the session is being aborted, for
+    long computations to poll (a backend then cancels its tasks).
     """
 
     measure_params: MeasureParams
@@ -200,6 +204,8 @@ class PlanContext:
     session_id: str | None = None
     jobs: int = 1
     calibration: CalibrationCell | None = None
+    compute: MeasureBackend | None = None
+    cancelled: Callable[[], bool] = field(default=lambda: False)
 
 
 @dataclass(frozen=True)
