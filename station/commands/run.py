@@ -19,7 +19,7 @@ from typing import Any
 
 from station.batch import max_jobs
 from station.commands import SubParsers
-from station.commands._common import add_compute_options, bounded_int, compute_spec
+from station.commands._common import add_compute_options, compute_spec
 from station.config import ConfigurationError
 from station.devices import DeviceError
 from station.plans import PLAN_NAMES, PlanError
@@ -69,7 +69,7 @@ def register(sub: SubParsers) -> None:
     p.add_argument(
         "-j",
         "--jobs",
-        type=bounded_int("--jobs", 1, max_jobs()),
+        type=int,  # bounded in run(), so that --json can still print its outcome object
         default=None,
         help=f"local worker processes for sweep and reanalyse, 1 to {max_jobs()} (default 1)",
     )
@@ -142,6 +142,8 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
 
     if (args.kind is None) == (args.resume is None):
         usage("give a session kind, or --resume ID (not both)")
+    if args.jobs is not None and not 1 <= args.jobs <= max_jobs():
+        usage(f"--jobs must be from 1 to {max_jobs()}, got {args.jobs}")
     try:
         compute = compute_spec(parser, args, jobs=1)
         params = parse_params(parser, args.param)
