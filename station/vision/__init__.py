@@ -35,6 +35,7 @@ from station.vision._params import (
     parse_assignments,
 )
 from station.vision._result import EdgeFit, Measurement
+from station.vision._ruler_spec import RulerCode, RulerSpec
 from station.vision._sanity import IncompleteCrossError, MultipleCrossingsError, check_single_cross
 from station.vision._series import series_centers_mm, series_homography
 from station.vision._testbox import acceptance_mask, segment_edge, testbox_scan
@@ -56,6 +57,8 @@ __all__ = [
     "Mode",
     "MultipleCrossingsError",
     "RecursiveFit",
+    "RulerCode",
+    "RulerSpec",
     "acceptance_mask",
     "apply_filter",
     "apply_homography",
