@@ -1,0 +1,303 @@
+"""The ruler measurement's entry point: image + parameters -> RulerMeasurement (pure: no I/O).
+
+Coarse stage (``_ruler_coarse``), then two passes over the pixels (``_ruler_bins``): the first
+fits the graduations' phase from the coarse frame, the second, with the corrected frame, fits it
+again and also bins the code track and the line tips. The code names the graduations
+(``_ruler_code``), the tips place the axis (``_ruler_tips``), and the result is read at the
+reference pixel. The design and the method's reasons: ``station/vision/RULER.md``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+
+from station.vision._image import check_quality, image_bit_depth, to_gray8
+from station.vision._ruler_bins import fold
+from station.vision._ruler_coarse import coarse_ruler
+from station.vision._ruler_code import cell_darkness, read_code
+from station.vision._ruler_errors import OffRulerError, TooFewGraduationsError
+from station.vision._ruler_frame import RulerFrame
+from station.vision._ruler_layout import Plan, plan
+from station.vision._ruler_lens import lens_coordinates
+from station.vision._ruler_params import RulerParams
+from station.vision._ruler_phase import (
+    FrameCorrection,
+    WindowPhases,
+    fit_correction,
+    template_value,
+    window_phases,
+    windows_from_bins,
+)
+from station.vision._ruler_result import RulerMeasurement
+from station.vision._ruler_tips import Tips, fit_tip, modulation
+
+FloatArray = npt.NDArray[np.float64]
+
+#: Noise floor of the bins' residuals (DN): 8-bit quantisation.
+QUANTISATION_DN = 0.3
+#: A window whose contrast is below this fraction of the median shows no graduations (a ruler's end).
+MIN_WINDOW_CONTRAST = 0.3
+
+
+def measure_ruler(
+    image: object, params: RulerParams | None = None, *, significant_bits: int | None = None
+) -> RulerMeasurement:
+    """Measure where along the ruler the image's reference pixel lies.
+
+    Parameters
+    ----------
+    image : ndarray
+        2-D uint8 or uint16, or BGR/BGRA colour; any size from 64 px (not modified).
+    params : RulerParams, optional
+        The ruler, the camera model, limits; default the design's ruler, no camera model.
+    significant_bits : int, optional
+        Significant bits per sample recorded by the file (PNG's sBIT).
+
+    Returns
+    -------
+    RulerMeasurement
+        ``position_mm``, ``offset_mm``, ``angle_deg`` at the reference pixel, the code read, diagnostics.
+
+    Raises
+    ------
+    MeasurementError
+        InvalidImageError, ImageQualityError, OffRulerError, TooFewGraduationsError,
+        CodeUnreadableError, CodeInconsistentError: each says what to do.
+    """
+    p = params if params is not None else RulerParams()
+    spec = p.ruler
+    bit_depth = image_bit_depth(image, p.bit_depth or significant_bits)
+    gray = to_gray8(image, bit_depth=bit_depth)
+    check_quality(gray)
+    coords, reference = lens_coordinates(p.camera_matrix, p.dist_coeffs, gray.shape)
+    coarse = coarse_ruler(gray, spec, min_periods=p.min_periods)
+    period = coarse.period_px
+    frame = coarse.frame
+    first = plan(frame, period, p, gray.shape, full=False)
+    _, phases, correction = _phase_pass(gray, frame, first, fold(gray, frame, first.strips, coords), p)
+    frame = _corrected(frame, correction, gray.shape)
+    second = plan(frame, period, p, gray.shape, full=True)
+    bins = fold(gray, frame, second.strips, coords)
+    windows_used, phases, correction = _phase_pass(gray, frame, second, bins, p)
+    final = _corrected(frame, correction, gray.shape)
+    remap = _remap(correction)
+    code_bins = second.rows(bins, second.code_rows)
+    dark, bright = _levels(second, phases, correction, code_bins, remap)
+    cells, darkness = cell_darkness(
+        code_bins,
+        remap(code_bins),
+        second.row_ids(second.code_rows),
+        spec.code.cells_per_pitch,
+        dark,
+        bright,
+    )
+    reading = read_code(cells, darkness, spec)
+    tips = _tips(
+        second,
+        bins,
+        frame,
+        final,
+        remap,
+        spec.line_length_mm / 2 / spec.pitch_mm,
+        phases.template,
+        period,
+        phases.noise_dn,
+    )
+    final = final.sheared(-tips.axis(0.0), -tips.slope)
+    s_ref, t_ref = final.point(*reference)
+    grad_s, _ = final.gradient(*reference)
+    axis_dir = _axis_direction(final, reference)
+    u_ref = s_ref - correction.s_centre
+    t_old = t_ref + tips.axis(s_ref)
+    g = np.array([1.0, u_ref, t_old, -u_ref * u_ref, -u_ref * t_old])
+    sigma_periods = math.sqrt(max(float(g @ correction.covariance @ g), 0.0))
+    position = (s_ref + reading.graduation) * spec.pitch_mm
+    extra = {
+        "period_px": round(1.0 / float(np.hypot(*grad_s)), 6),
+        "px_per_mm": round(1.0 / float(np.hypot(*grad_s)) / spec.pitch_mm, 6),
+        "periods_in_view": round(coarse.stretch[1] - coarse.stretch[0], 3),
+        "windows": {"used": correction.used, "total": len(correction.residual), "in_view": windows_used},
+        "phase_rms_px": round(float(np.sqrt(np.mean(correction.residual**2))) * period, 6),
+        "noise_dn": round(phases.noise_dn, 4),
+        "rejected_bins": phases.rejected,
+        "contrast_dn": round(float(np.median(np.abs(phases.dark - phases.bright))), 3),
+        "position_u_nm": round(sigma_periods * spec.pitch_mm * 1e6, 3),
+        "certificate_u_nm": round(spec.position_u_nm(position), 3),
+        "tips": {
+            "width_ratio": round(tips.width * spec.pitch_mm / spec.line_length_mm, 6),
+            "blur_px": round(tips.blur * period, 4),
+        },
+        "perspective": [round(float(v), 9) for v in correction.e[3:]],
+        "bit_depth": bit_depth,
+    }
+    return RulerMeasurement(
+        position_mm=position,
+        offset_mm=t_ref * spec.pitch_mm,
+        angle_deg=math.degrees(math.atan2(axis_dir[1], axis_dir[0])),
+        reference_px=reference,
+        frame=final,
+        code=reading,
+        params=p,
+        extra=extra,
+    )
+
+
+def _phase_pass(
+    gray: npt.NDArray[np.uint8], frame: RulerFrame, layout: Plan, bins: FloatArray, p: RulerParams
+) -> tuple[int, WindowPhases, FrameCorrection]:
+    """Window phases and the frame's correction from one pass's phase strips."""
+    if len(layout.window_starts) < 3:
+        raise TooFewGraduationsError(
+            f"fewer than 3 phase windows ({p.window_periods} periods each) fit in the view: centre the "
+            "ruler in the frame, or turn the camera so that it runs along the frame's long side"
+        )
+    w = windows_from_bins(
+        layout.rows(bins, layout.phase_rows), layout.window_starts, layout.window_length, layout.window_strip
+    )
+    phases = window_phases(w, outlier_sigma=p.outlier_sigma, noise_floor_dn=QUANTISATION_DN)
+    contrast = np.abs(phases.dark - phases.bright)
+    median = float(np.median(contrast))
+    if median < p.min_contrast_dn:
+        raise OffRulerError(
+            f"the graduations' contrast is {median:.1f} DN (at least {p.min_contrast_dn:g} needed): check "
+            "focus, exposure and lighting, and that the ruler is in view"
+        )
+    present = contrast >= MIN_WINDOW_CONTRAST * median
+    span = w.moments[present, 1]
+    reach = float(span.max() - span.min()) + layout.window_length if present.any() else 0.0
+    if reach < p.min_periods:
+        raise TooFewGraduationsError(
+            f"graduations are seen over {reach:.1f} periods only (at least {p.min_periods:g} needed): the "
+            "end of the ruler? Move the view along the ruler"
+        )
+    kept = WindowPhases(
+        delta=phases.delta,
+        info=np.where(present, phases.info, 0.0),
+        amplitude=phases.amplitude,
+        dark=phases.dark,
+        bright=phases.bright,
+        noise_dn=phases.noise_dn,
+        rejected=phases.rejected,
+        template=phases.template,
+    )
+    return int(present.sum()), kept, fit_correction(w, kept)
+
+
+def _corrected(frame: RulerFrame, correction: FrameCorrection, shape: tuple[int, int]) -> RulerFrame:
+    """The frame corrected, with ``t`` squared to ``s`` at the pattern's centre in view."""
+    moved = frame.corrected(correction.e, correction.s_centre)
+    x, y = moved.image_of(correction.s_centre, 0.0)
+    if not (0 <= x < shape[1] and 0 <= y < shape[0]):
+        x, y = (shape[1] - 1) / 2.0, (shape[0] - 1) / 2.0
+    return moved.squared(x, y)
+
+
+def _remap(correction: FrameCorrection):  # type: ignore[no-untyped-def]
+    """Mean ``s`` of bins, moved into the corrected frame (first order in the correction)."""
+    e0, e1, e2, e3, e4 = correction.e
+
+    def apply(bins: FloatArray) -> FloatArray:
+        n = bins[:, 0]
+        safe = np.maximum(n, 1.0)
+        s = np.where(n > 0, bins[:, 2] / safe, np.nan)
+        t = bins[:, 3] / safe
+        u = s - correction.s_centre
+        return np.asarray(s + e0 + e1 * u + e2 * t - u * (e3 * u + e4 * t))
+
+    return apply
+
+
+def _levels(
+    layout: Plan, phases: WindowPhases, correction: FrameCorrection, code_bins: FloatArray, remap
+) -> tuple[FloatArray, FloatArray]:  # type: ignore[no-untyped-def]
+    """The graduations' dark and bright levels at each code bin: a line along ``s`` fitted to the
+    windows of the two phase strips beside the code track."""
+    del correction
+    s_bins = remap(code_bins)
+    strips = layout.window_strip
+    # the phase strips just below and above the code track: the last of the lower part and the next
+    order = sorted(set(strips.tolist()))
+    table = layout.strips.table
+    code_t = table[list(layout.code_rows), 0].mean() if layout.code_rows else 0.0
+    phase_t = {k: table[layout.phase_rows[k], 0] for k in order}
+    below = max((k for k in order if phase_t[k] < code_t), default=order[0], key=lambda k: phase_t[k])
+    above = min((k for k in order if phase_t[k] > code_t), default=order[-1], key=lambda k: phase_t[k])
+    near = np.isin(strips, [below, above]) & (phases.info > 0)
+    centres = layout.window_starts + layout.window_length / 2
+    s = centres[near]
+    fill = np.where(np.isfinite(s_bins), s_bins, 0.0)
+    if len(s) >= 2:
+        dark = np.polyval(np.polyfit(s, phases.dark[near], 1), fill)
+        bright = np.polyval(np.polyfit(s, phases.bright[near], 1), fill)
+    else:
+        dark = np.full(len(s_bins), float(np.median(phases.dark)))
+        bright = np.full(len(s_bins), float(np.median(phases.bright)))
+    return np.asarray(dark), np.asarray(bright)
+
+
+def _tips(
+    layout: Plan,
+    bins: FloatArray,
+    frame: RulerFrame,
+    final: RulerFrame,
+    remap,
+    half: float,
+    template: FloatArray,
+    period: float,
+    noise: float,  # type: ignore[no-untyped-def]
+) -> Tips:
+    """The tips' lines in the final frame, from the tip zones' strips binned in ``frame``; each zone
+    split in two halves along the ruler (``half``: the design's tip, periods)."""
+    offsets = layout.strips.offsets
+    points: dict[tuple[bool, int], tuple[float, float]] = {}
+    blurs: list[float] = []
+    for rows, upper in ((layout.lower_tip_rows, False), (layout.upper_tip_rows, True)):
+        if len(rows) < 6:
+            raise OffRulerError(
+                "the tips of the graduation lines are not in view on both sides: bring the whole pattern "
+                "across the ruler into the frame"
+            )
+        zone = [bins[offsets[r] : offsets[r + 1]] for r in rows]
+        s_zone = [remap(z) for z in zone]
+        s_all = np.concatenate(s_zone)
+        lo, hi = float(np.nanmin(s_all)), float(np.nanmax(s_all))
+        cut = lo + np.floor((hi - lo) / 2.0)  # whole periods in the first half
+        for side in (0, 1):
+            m = np.empty(len(rows))
+            t = np.empty(len(rows))
+            raw_s = 0.0
+            count = 0.0
+            for i, (z, sz) in enumerate(zip(zone, s_zone, strict=True)):
+                finite = np.isfinite(sz)
+                inside = finite & ((np.nan_to_num(sz) < cut) if side == 0 else (np.nan_to_num(sz) >= cut))
+                profile, _ = template_value(template, np.where(inside, sz, 0.0))
+                m[i], t[i] = modulation(z[inside], profile[inside], noise)
+                raw_s += float(z[inside, 2].sum())
+                count += float(z[inside, 0].sum())
+            t_e, blur = fit_tip(t, m, half if upper else -half, 1.5 / period, inside_below=upper)
+            blurs.append(blur)
+            x, y = frame.image_of(raw_s / max(count, 1.0), t_e)
+            points[(upper, side)] = final.point(x, y)
+    return Tips(
+        lower=(points[(False, 0)][1], points[(False, 1)][1]),
+        upper=(points[(True, 0)][1], points[(True, 1)][1]),
+        s_left=0.5 * (points[(False, 0)][0] + points[(True, 0)][0]),
+        s_right=0.5 * (points[(False, 1)][0] + points[(True, 1)][0]),
+        blur=float(np.mean(blurs)),
+    )
+
+
+def _axis_direction(frame: RulerFrame, reference: tuple[float, float]) -> FloatArray:
+    """Unit image direction of the ruler's axis (``t = 0``) toward +s."""
+    b = frame.matrix[1]
+    direction = np.array([b[1], -b[0]])
+    s0, _ = frame.point(*frame.image_of(0.0, 0.0))
+    x1, y1 = frame.image_of(s0 + 1.0, 0.0)
+    x0, y0 = frame.image_of(s0, 0.0)
+    if direction @ np.array([x1 - x0, y1 - y0]) < 0:
+        direction = -direction
+    del reference
+    return np.asarray(direction / np.hypot(*direction))
