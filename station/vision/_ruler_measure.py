@@ -10,6 +10,7 @@ reference pixel. The design and the method's reasons: ``station/vision/RULER.md`
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 import numpy.typing as npt
@@ -32,12 +33,15 @@ from station.vision._ruler_phase import (
     windows_from_bins,
 )
 from station.vision._ruler_result import RulerMeasurement
-from station.vision._ruler_tips import Tips, fit_tip, modulation
+from station.vision._ruler_tips import Tips, contrasts, fit_tip
 
 FloatArray = npt.NDArray[np.float64]
 
 #: Noise floor of the bins' residuals (DN): 8-bit quantisation.
 QUANTISATION_DN = 0.3
+#: The first pass looks at every second pixel of every second row (the frame it gives is only the
+#: second pass's starting point).
+FIRST_PASS_STEP = 2
 #: A window whose contrast is below this fraction of the median shows no graduations (a ruler's end).
 MIN_WINDOW_CONTRAST = 0.3
 
@@ -77,7 +81,8 @@ def measure_ruler(
     period = coarse.period_px
     frame = coarse.frame
     first = plan(frame, period, p, gray.shape, full=False)
-    _, phases, correction = _phase_pass(gray, frame, first, fold(gray, frame, first.strips, coords), p)
+    quick = fold(gray, frame, first.strips, coords, step=FIRST_PASS_STEP)
+    _, phases, correction = _phase_pass(gray, frame, first, quick, p, quick=True)
     frame = _corrected(frame, correction, gray.shape)
     second = plan(frame, period, p, gray.shape, full=True)
     bins = fold(gray, frame, second.strips, coords)
@@ -95,17 +100,7 @@ def measure_ruler(
         bright,
     )
     reading = read_code(cells, darkness, spec)
-    tips = _tips(
-        second,
-        bins,
-        frame,
-        final,
-        remap,
-        spec.line_length_mm / 2 / spec.pitch_mm,
-        phases.template,
-        period,
-        phases.noise_dn,
-    )
+    tips = _tips(second, bins, (frame, final), remap, spec.line_length_mm / 2 / spec.pitch_mm, phases, period)
     final = final.sheared(-tips.axis(0.0), -tips.slope)
     s_ref, t_ref = final.point(*reference)
     grad_s, _ = final.gradient(*reference)
@@ -128,7 +123,7 @@ def measure_ruler(
         "certificate_u_nm": round(spec.position_u_nm(position), 3),
         "tips": {
             "width_ratio": round(tips.width * spec.pitch_mm / spec.line_length_mm, 6),
-            "blur_px": round(tips.blur * period, 4),
+            "blur_px": round(tips.blur, 4),
         },
         "perspective": [round(float(v), 9) for v in correction.e[3:]],
         "bit_depth": bit_depth,
@@ -146,7 +141,13 @@ def measure_ruler(
 
 
 def _phase_pass(
-    gray: npt.NDArray[np.uint8], frame: RulerFrame, layout: Plan, bins: FloatArray, p: RulerParams
+    gray: npt.NDArray[np.uint8],
+    frame: RulerFrame,
+    layout: Plan,
+    bins: FloatArray,
+    p: RulerParams,
+    *,
+    quick: bool = False,
 ) -> tuple[int, WindowPhases, FrameCorrection]:
     """Window phases and the frame's correction from one pass's phase strips."""
     if len(layout.window_starts) < 3:
@@ -157,7 +158,7 @@ def _phase_pass(
     w = windows_from_bins(
         layout.rows(bins, layout.phase_rows), layout.window_starts, layout.window_length, layout.window_strip
     )
-    phases = window_phases(w, outlier_sigma=p.outlier_sigma, noise_floor_dn=QUANTISATION_DN)
+    phases = window_phases(w, outlier_sigma=p.outlier_sigma, noise_floor_dn=QUANTISATION_DN, quick=quick)
     contrast = np.abs(phases.dark - phases.bright)
     median = float(np.median(contrast))
     if median < p.min_contrast_dn:
@@ -241,17 +242,16 @@ def _levels(
 def _tips(
     layout: Plan,
     bins: FloatArray,
-    frame: RulerFrame,
-    final: RulerFrame,
-    remap,
+    frames: tuple[RulerFrame, RulerFrame],
+    remap: Callable[[FloatArray], FloatArray],
     half: float,
-    template: FloatArray,
+    phases: WindowPhases,
     period: float,
-    noise: float,  # type: ignore[no-untyped-def]
 ) -> Tips:
-    """The tips' lines in the final frame, from the tip zones' strips binned in ``frame``; each zone
-    split in two halves along the ruler (``half``: the design's tip, periods)."""
-    offsets = layout.strips.offsets
+    """The tips' lines in the final frame (``frames[1]``) from the tip zones' strips binned in the
+    pass's frame (``frames[0]``); each zone split in two halves along the ruler (``half``: the
+    design's tip, periods)."""
+    binned, final = frames
     points: dict[tuple[bool, int], tuple[float, float]] = {}
     blurs: list[float] = []
     for rows, upper in ((layout.lower_tip_rows, False), (layout.upper_tip_rows, True)):
@@ -260,33 +260,26 @@ def _tips(
                 "the tips of the graduation lines are not in view on both sides: bring the whole pattern "
                 "across the ruler into the frame"
             )
-        zone = [bins[offsets[r] : offsets[r + 1]] for r in rows]
-        s_zone = [remap(z) for z in zone]
-        s_all = np.concatenate(s_zone)
-        lo, hi = float(np.nanmin(s_all)), float(np.nanmax(s_all))
+        zone = layout.rows(bins, rows)
+        strip = layout.row_ids(rows)
+        s_zone = remap(zone)
+        finite = np.isfinite(s_zone)
+        lo, hi = float(np.min(s_zone[finite])), float(np.max(s_zone[finite]))
         cut = lo + np.floor((hi - lo) / 2.0)  # whole periods in the first half
+        profile, _ = template_value(phases.template, np.where(finite, s_zone, 0.0))
         for side in (0, 1):
-            m = np.empty(len(rows))
-            t = np.empty(len(rows))
-            raw_s = 0.0
-            count = 0.0
-            for i, (z, sz) in enumerate(zip(zone, s_zone, strict=True)):
-                finite = np.isfinite(sz)
-                inside = finite & ((np.nan_to_num(sz) < cut) if side == 0 else (np.nan_to_num(sz) >= cut))
-                profile, _ = template_value(template, np.where(inside, sz, 0.0))
-                m[i], t[i] = modulation(z[inside], profile[inside], noise)
-                raw_s += float(z[inside, 2].sum())
-                count += float(z[inside, 0].sum())
+            inside = finite & ((s_zone < cut) if side == 0 else (s_zone >= cut))
+            m, t = contrasts(zone[inside], strip[inside], len(rows), profile[inside], phases.noise_dn)
             t_e, blur = fit_tip(t, m, half if upper else -half, 1.5 / period, inside_below=upper)
             blurs.append(blur)
-            x, y = frame.image_of(raw_s / max(count, 1.0), t_e)
-            points[(upper, side)] = final.point(x, y)
+            raw_s = float(zone[inside, 2].sum()) / max(float(zone[inside, 0].sum()), 1.0)
+            points[(upper, side)] = final.point(*binned.image_of(raw_s, t_e))
     return Tips(
         lower=(points[(False, 0)][1], points[(False, 1)][1]),
         upper=(points[(True, 0)][1], points[(True, 1)][1]),
         s_left=0.5 * (points[(False, 0)][0] + points[(True, 0)][0]),
         s_right=0.5 * (points[(False, 1)][0] + points[(True, 1)][0]),
-        blur=float(np.mean(blurs)),
+        blur=float(np.mean(blurs)) * period,
     )
 
 

@@ -24,10 +24,12 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from station.vision._kernels import compiled
+
 FloatArray = npt.NDArray[np.float64]
 
 #: Bins per period of the phase strips.
-BINS_PER_PERIOD = 256
+BINS_PER_PERIOD = 128
 #: Samples per period of the tabulated template (cubic interpolation between them).
 TEMPLATE_SAMPLES = 4096
 #: Fine bins over half a period into which the aligned profiles are averaged before the fit.
@@ -73,10 +75,10 @@ def windows_from_bins(
     cov_st = b[..., 5].sum(axis=1) / ok - mean_s * mean_t
     moments = np.column_stack([total, mean_s, mean_t, var_s, cov_st])
     return Windows(
-        n=n,
-        level=b[..., 1] / safe,
-        s=s,
-        u=s - (starts[:, None] + length / 2),
+        n=np.ascontiguousarray(n),
+        level=np.ascontiguousarray(b[..., 1] / safe),
+        s=np.ascontiguousarray(s),
+        u=np.ascontiguousarray(s - (starts[:, None] + length / 2)),
         moments=moments,
         strip=strip,
     )
@@ -131,14 +133,32 @@ def _template(w: Windows, weight: FloatArray, coef: FloatArray, delta: FloatArra
     seen = total > 0
     mean_x = np.bincount(index, wt * x, minlength=FOLD_BINS)[seen] / total[seen]
     mean_v = np.bincount(index, wt * v, minlength=FOLD_BINS)[seen] / total[seen]
-    k = np.arange(HARMONICS + 1)
-    basis = np.cos(2 * np.pi * mean_x[:, None] * k[None, :])
+    # normal equations of the cosine series from the moments M_j = sum w cos(2 pi j x), j <= 2K:
+    # sum w cos(k a) cos(l a) = (M_|k-l| + M_(k+l)) / 2 (a matrix-vector product, no matrix product)
     weights = total[seen]
-    normal_eq = basis.T @ (basis * weights[:, None])
-    normal_eq += np.eye(len(k)) * 1e-10 * np.trace(normal_eq) / len(k)
-    series = np.linalg.solve(normal_eq, basis.T @ (weights * mean_v))
-    grid = np.arange(TEMPLATE_SAMPLES) / TEMPLATE_SAMPLES
-    return np.asarray(np.cos(2 * np.pi * grid[:, None] * k[None, :]) @ series)
+    cosines = _cosines(mean_x, 2 * HARMONICS)
+    moments = weights @ cosines
+    k = np.arange(HARMONICS + 1)
+    normal_eq = 0.5 * (moments[np.abs(k[:, None] - k[None, :])] + moments[k[:, None] + k[None, :]])
+    normal_eq += np.eye(HARMONICS + 1) * 1e-10 * np.trace(normal_eq) / (HARMONICS + 1)
+    series = np.linalg.solve(normal_eq, (weights * mean_v) @ cosines[:, : HARMONICS + 1])
+    # tabulated by an inverse real FFT: grid[j] = sum_k series[k] cos(2 pi k j / TEMPLATE_SAMPLES)
+    spectrum = np.zeros(TEMPLATE_SAMPLES // 2 + 1)
+    spectrum[: HARMONICS + 1] = series
+    spectrum[1 : HARMONICS + 1] *= 0.5
+    return np.asarray(np.fft.irfft(spectrum, TEMPLATE_SAMPLES) * TEMPLATE_SAMPLES)
+
+
+def _cosines(x: FloatArray, top: int) -> FloatArray:
+    """``cos(2 pi k x)`` for ``k = 0 .. top``, (len(x), top + 1), by the recurrence
+    ``cos(k a) = 2 cos(a) cos((k - 1) a) - cos((k - 2) a)``."""
+    out = np.empty((len(x), top + 1))
+    out[:, 0] = 1.0
+    c = np.cos(2 * np.pi * x)
+    out[:, 1] = c
+    for k in range(2, top + 1):
+        out[:, k] = 2.0 * c * out[:, k - 1] - out[:, k - 2]
+    return out
 
 
 @dataclass(frozen=True)
@@ -160,40 +180,101 @@ class WindowPhases:
     template: FloatArray
 
 
-def window_phases(w: Windows, *, outlier_sigma: float, noise_floor_dn: float) -> WindowPhases:
-    """Fit every window's phase against the shared template (module docstring)."""
+def _round(
+    w: Windows, weight: FloatArray, grid: FloatArray, delta: FloatArray, *, residual: bool
+) -> tuple[FloatArray, FloatArray | None]:
+    """One least-squares round of every window against the profile ``grid`` at phase ``s + delta``.
+
+    Returns ``(coef, residuals)``: per window the coefficients of ``(1, u, T, u T, T')`` and
+    ``sum(weight T'^2)`` (``(windows, 6)``), and, when asked, each bin's residual without the ``T'``
+    term times ``sqrt(n)``. The compiled kernel (``_ckernels.ruler_fit``) does the same.
+    """
+    ck = compiled()
+    if ck is not None:
+        coef = np.empty((len(delta), 6))
+        out = np.empty_like(w.n) if residual else None
+        ck.ruler_fit(
+            w.n,
+            w.level,
+            w.s,
+            w.u,
+            np.ascontiguousarray(weight, dtype=np.float64),
+            grid,
+            np.ascontiguousarray(delta),
+            coef,
+            out,
+        )
+        return coef, out
+    value, slope = template_value(grid, w.s + delta[:, None])
+    columns = [np.ones_like(w.u), w.u, value, w.u * value, slope]
+    coef5 = _solve(weight, columns, w.level)
+    coef = np.column_stack([coef5, np.sum(weight * slope * slope, axis=1)])
+    if not residual:
+        return coef, None
+    model = coef[:, 0:1] + coef[:, 1:2] * w.u + (coef[:, 2:3] + coef[:, 3:4] * w.u) * value
+    return coef, (w.level - model) * np.sqrt(w.n)
+
+
+#: The fundamental alone, tabulated like a template (``cos``: bright at whole ``s``).
+_COSINE = np.cos(2 * np.pi * np.arange(TEMPLATE_SAMPLES) / TEMPLATE_SAMPLES)
+_COSINE.setflags(write=False)
+
+
+def _step(coef: FloatArray) -> FloatArray:
+    """The Gauss-Newton step of each window's phase from a round's coefficients (at most 0.1 period)."""
+    contrast = np.where(np.abs(coef[:, 2]) > 1e-9, coef[:, 2], 1e-9)
+    return np.asarray(np.clip(coef[:, 4] / contrast, -0.1, 0.1))
+
+
+def window_phases(
+    w: Windows, *, outlier_sigma: float, noise_floor_dn: float, quick: bool = False
+) -> WindowPhases:
+    """Fit every window's phase against the shared template (module docstring).
+
+    ``quick``: the fundamental only, no template and no outliers dropped (the first, coarse pass).
+    """
     n = w.n
-    one = np.ones_like(w.u)
-    cos1, sin1 = np.cos(2 * np.pi * w.s), np.sin(2 * np.pi * w.s)
-    coef = _solve(n, [one, w.u, cos1, sin1], w.level)
-    delta = np.arctan2(coef[:, 3], -coef[:, 2]) / (2 * np.pi)
-    amp = np.hypot(coef[:, 2], coef[:, 3])
+    delta = np.zeros(len(n))
+    coef = np.zeros((len(n), 6))
+    for _ in range(1 if not quick else 2):  # the fundamental: dark graduations at whole s + delta
+        coef, _ = _round(w, n, _COSINE, delta, residual=False)
+        delta = delta + np.arctan2(-2 * np.pi * coef[:, 4], -coef[:, 2]) / (2 * np.pi)
+    amp = np.hypot(coef[:, 2], 2 * np.pi * coef[:, 4])
     centre = np.angle(np.sum(amp**2 * n.sum(axis=1) * np.exp(2j * np.pi * delta))) / (2 * np.pi)
     delta = centre + ((delta - centre + 0.5) % 1.0 - 0.5)
+    if quick:
+        info = amp**2 * coef[:, 5]
+        return WindowPhases(
+            delta=delta,
+            info=np.where(np.isfinite(info), info, 0.0),
+            amplitude=amp,
+            dark=coef[:, 0] - amp,
+            bright=coef[:, 0] + amp,
+            noise_dn=noise_floor_dn,
+            rejected=0,
+            template=_COSINE,
+        )
     start = np.column_stack([coef[:, 0], coef[:, 1], -amp, np.zeros_like(amp)])
     grid = _template(w, n, start, delta)
-    weight = n
-    noise = noise_floor_dn
-    for step in range(5):
-        value, slope = template_value(grid, w.s + delta[:, None])
-        coef = _solve(weight, [one, w.u, value, w.u * value, slope], w.level)
-        contrast = np.where(np.abs(coef[:, 2]) > 1e-9, coef[:, 2], 1e-9)
-        delta = delta + np.clip(coef[:, 4] / contrast, -0.1, 0.1)
-        if step == 1:
-            grid = _template(w, weight, coef, delta)
-        if step == 2:
-            value, _ = template_value(grid, w.s + delta[:, None])
-            model = coef[:, 0:1] + coef[:, 1:2] * w.u + (coef[:, 2:3] + coef[:, 3:4] * w.u) * value
-            residual = (w.level - model) * np.sqrt(n)
-            noise = max(1.4826 * float(np.median(np.abs(residual[n > 0]))), noise_floor_dn)
-            weight = n * (np.abs(residual) < outlier_sigma * noise)
-    value, slope = template_value(grid, w.s + delta[:, None])
-    info = coef[:, 2] ** 2 * np.sum(weight * slope * slope, axis=1)
+    # a round against the first template; a second with the bins' residuals: outliers dropped and
+    # the template made again from what is left; two more rounds against it
+    coef, _ = _round(w, n, grid, delta, residual=False)
+    delta = delta + _step(coef)
+    coef, residual = _round(w, n, grid, delta, residual=True)
+    assert residual is not None
+    noise = max(1.4826 * float(np.median(np.abs(residual[n > 0]))), noise_floor_dn)
+    weight = n * (np.abs(residual) < outlier_sigma * noise)
+    delta = delta + _step(coef)
+    grid = _template(w, weight, coef, delta)
+    for _ in range(2):
+        coef, _ = _round(w, weight, grid, delta, residual=False)
+        delta = delta + _step(coef)
+    info = coef[:, 2] ** 2 * coef[:, 5]
     dark_v, _ = template_value(grid, np.zeros(1))
     bright_v, _ = template_value(grid, np.full(1, 0.5))
     return WindowPhases(
         delta=delta,
-        info=info,
+        info=np.where(np.isfinite(info), info, 0.0),
         amplitude=np.abs(coef[:, 2]),
         dark=coef[:, 0] + coef[:, 2] * float(dark_v[0]),
         bright=coef[:, 0] + coef[:, 2] * float(bright_v[0]),

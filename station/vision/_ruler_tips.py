@@ -49,31 +49,60 @@ class Tips:
         return 0.5 * (self.upper[0] - self.lower[0] + self.upper[1] - self.lower[1])
 
 
-def modulation(bins: FloatArray, profile: FloatArray, noise_floor: float) -> tuple[float, float]:
-    """One strip's graduation contrast and mean ``t``: the least-squares coefficient of the
-    graduations' profile (``profile``: the template at each bin's ``s``) in the strip's grey levels,
-    with a constant background. Exact whatever the pixels' sampling of the period, as the template
-    is the graduations' own shape. Bins more than 4 robust sigmas (at least ``noise_floor`` DN per
-    pixel) off the fit are dropped and the fit made again.
+def contrasts(
+    bins: FloatArray, strip: npt.NDArray[np.int64], strips: int, profile: FloatArray, noise_floor: float
+) -> tuple[FloatArray, FloatArray]:
+    """Each strip's graduation contrast and mean ``t``.
+
+    The least-squares coefficient of the graduations' profile (``profile``: the template at each
+    bin's ``s``) in the strip's grey levels, with a constant background: exact whatever the pixels'
+    sampling of the period, as the template is the graduations' own shape. Bins more than 4 robust
+    sigmas (at least ``noise_floor`` DN per pixel) off the fit are dropped and the fits made again.
+
+    Parameters
+    ----------
+    bins : (n, 6) ndarray
+        The bins (``_ruler_bins.BIN_FIELDS``).
+    strip : (n,) ndarray of int
+        Each bin's strip, ``0 .. strips - 1``.
+    strips : int
+        Number of strips.
+    profile : (n,) ndarray
+        The template at each bin's ``s``.
+    noise_floor : float
+        Smallest noise assumed, DN per pixel.
+
+    Returns
+    -------
+    contrast, t : ndarray, ndarray
+        Per strip (NaN where a strip has too few bins).
     """
     n = bins[:, 0]
-    total = float(n.sum())
-    ok = n > 0
-    if total <= 0 or ok.sum() < 3:
-        return float("nan"), float("nan")
-    level = bins[ok, 1] / n[ok]
-    x = np.column_stack([np.ones(int(ok.sum())), profile[ok]])
-    weight = n[ok]
-    coef = np.zeros(2)
+    level = bins[:, 1] / np.maximum(n, 1.0)
+    weight = n.copy()
+    contrast = np.full(strips, np.nan)
+    background = np.zeros(strips)
     for _ in range(2):  # once more without the bins a speck or a scratch spoils
-        normal = x.T @ (x * weight[:, None])
-        if abs(np.linalg.det(normal)) < 1e-12 * max(float(np.trace(normal)) ** 2, 1e-300):
-            return float("nan"), float("nan")
-        coef = np.linalg.solve(normal, x.T @ (weight * level))
-        residual = (level - x @ coef) * np.sqrt(n[ok])
-        spread = max(1.4826 * float(np.median(np.abs(residual))), noise_floor)
-        weight = n[ok] * (np.abs(residual) < 4.0 * spread)
-    return float(coef[1]), float(bins[:, 3].sum()) / total
+
+        def total(values: FloatArray) -> FloatArray:
+            return np.bincount(strip, values, minlength=strips)
+
+        s0, s1, s2 = total(weight), total(weight * profile), total(weight * profile * profile)
+        r0, r1 = total(weight * level), total(weight * level * profile)
+        det = s0 * s2 - s1 * s1
+        good = (np.bincount(strip, weight > 0, minlength=strips) >= 3) & (
+            np.abs(det) > 1e-12 * np.maximum(s0 * s2, 1e-300)
+        )
+        safe = np.where(good, det, 1.0)
+        background = np.where(good, (s2 * r0 - s1 * r1) / safe, np.nan)
+        contrast = np.where(good, (s0 * r1 - s1 * r0) / safe, np.nan)
+        residual = (level - background[strip] - contrast[strip] * profile) * np.sqrt(n)
+        ok = (n > 0) & np.isfinite(residual)
+        spread = max(1.4826 * float(np.median(np.abs(residual[ok]))) if ok.any() else 0.0, noise_floor)
+        weight = np.where(ok & (np.abs(residual) < 4.0 * spread), n, 0.0)
+    counts = np.bincount(strip, n, minlength=strips)
+    t = np.bincount(strip, bins[:, 3], minlength=strips) / np.where(counts > 0, counts, np.nan)
+    return contrast, t
 
 
 def fit_tip(
