@@ -194,15 +194,15 @@ def _stripes(
 ) -> FloatArray:
     """Blurred pixel coverage of the union of disjoint sorted intervals ``bounds`` (n, 2) of ``coord``.
 
-    ``coord`` is the ruler coordinate of each pixel (sharp membership), ``lines_lo``/``lines_hi``
-    the image lines of the intervals' lower and upper bounds; near each bound the sharp step is
-    replaced by ``box_step`` along that bound's own line.
+    Each interval covers ``S(d_lo) - S(d_hi)`` of a pixel, ``d`` the pixel centre's signed distance
+    to the image line of the interval's lower or upper bound (``lines_lo``, ``lines_hi``) and ``S``
+    the blurred step ``box_step`` (the sharp step beyond its reach); ``coord``, the ruler coordinate
+    of each pixel, only says which intervals are near: the others add exactly 0.
     """
     out = np.zeros(coord.shape)
     if len(bounds) == 0:
         return out
     idx = np.clip(np.searchsorted(bounds[:, 0], coord, side="right") - 1, 0, len(bounds) - 1)
-    out[(coord >= bounds[idx, 0]) & (coord < bounds[idx, 1])] = 1.0
     reach = cutoff_px(sigma_px)
     for shift in (-1, 0, 1):
         k = idx + shift
@@ -210,12 +210,11 @@ def _stripes(
         kk = np.where(valid, k, 0)
         for lines, sign in ((lines_lo, 1.0), (lines_hi, -1.0)):
             d = lines[kk, 0] * xs + lines[kk, 1] * ys - lines[kk, 2]
+            step = (d > 0).astype(np.float64)
             near = valid & (np.abs(d) < reach)
-            if not near.any():
-                continue
-            dn = d[near]
-            smooth = box_step(dn, np.abs(lines[kk[near], 0]), np.abs(lines[kk[near], 1]), sigma_px)
-            out[near] += sign * (smooth - (dn > 0))
+            if near.any():
+                step[near] = box_step(d[near], np.abs(lines[kk[near], 0]), np.abs(lines[kk[near], 1]), sigma_px)
+            out += np.where(valid, sign * step, 0.0)
     return np.clip(out, 0.0, 1.0)
 
 

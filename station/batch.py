@@ -16,10 +16,18 @@ from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar, cast
 
 from station.imageio import ImageFileError, ImageLimits, load_image
-from station.vision import Measurement, MeasurementError, MeasureParams, measure
+from station.vision import (
+    Measurement,
+    MeasurementError,
+    MeasureParams,
+    RulerMeasurement,
+    RulerParams,
+    measure,
+    measure_ruler,
+)
 
 log = logging.getLogger(__name__)
 
@@ -39,7 +47,7 @@ def display_name(path: str | Path) -> tuple[str, str | None]:
 
 @dataclass(frozen=True)
 class FileResult:
-    """One file's outcome: a measurement, or an error message and its code.
+    """One file's outcome: a measurement (of the cross, or ``ruler``'s), or an error and its code.
 
     ``file`` is printable text (U+FFFD where the name's bytes are not UTF-8); ``file_bytes_b64`` holds
     the raw name, base64, only for such names.
@@ -50,6 +58,7 @@ class FileResult:
     error: str | None = None
     code: str | None = None
     file_bytes_b64: str | None = None
+    ruler: RulerMeasurement | None = None
 
     @classmethod
     def for_path(cls, path: str | Path, **fields: Any) -> FileResult:
@@ -58,16 +67,17 @@ class FileResult:
 
     @property
     def ok(self) -> bool:
-        return self.measurement is not None
+        return self.measurement is not None or self.ruler is not None
 
     def to_json(self) -> dict[str, Any]:
         """The ``station measure --json`` line for this file."""
         head: dict[str, Any] = {"file": self.file}
         if self.file_bytes_b64 is not None:
             head["file_bytes_b64"] = self.file_bytes_b64
-        if self.measurement is None:
+        result = self.measurement if self.measurement is not None else self.ruler
+        if result is None:
             return {**head, "ok": False, "error": self.error, "code": self.code}
-        return {**head, **self.measurement.to_json()}
+        return {**head, **result.to_json()}
 
 
 def measure_file(path: str | Path, params: MeasureParams, limits: ImageLimits | None = None) -> FileResult:
@@ -85,7 +95,25 @@ def measure_file(path: str | Path, params: MeasureParams, limits: ImageLimits | 
         return FileResult.for_path(path, error="out of memory while measuring this image", code="bad_file")
 
 
-MeasureOne = Callable[[str, MeasureParams, ImageLimits | None], FileResult]
+def measure_ruler_file(
+    path: str | Path, params: RulerParams, limits: ImageLimits | None = None
+) -> FileResult:
+    """Read one file and measure the ruler in it; never raises for a bad file or image."""
+    try:
+        loaded = load_image(path, limits=limits)
+    except ImageFileError as exc:
+        return FileResult.for_path(path, error=exc.reason, code=exc.code)
+    bits = loaded.significant_bits if loaded.significant_bits and 8 <= loaded.significant_bits <= 16 else None
+    try:
+        return FileResult.for_path(path, ruler=measure_ruler(loaded.image, params, significant_bits=bits))
+    except MeasurementError as exc:
+        return FileResult.for_path(path, error=exc.message, code=exc.code)
+    except MemoryError:
+        return FileResult.for_path(path, error="out of memory while measuring this image", code="bad_file")
+
+
+Params = TypeVar("Params", bound=MeasureParams | RulerParams)
+MeasureOne = Callable[[str, Params, ImageLimits | None], FileResult]
 
 
 def default_jobs() -> int:
@@ -107,7 +135,7 @@ def _died(path: str, exc: BaseException) -> FileResult:
     )
 
 
-def _alone(path: str, params: MeasureParams, limits: ImageLimits | None, one: MeasureOne) -> FileResult:
+def _alone(path: str, params: Params, limits: ImageLimits | None, one: MeasureOne[Params]) -> FileResult:
     """Measure one file in a pool of its own: the suspect of a dead worker, tried once more."""
     with ProcessPoolExecutor(max_workers=1) as pool:
         try:
@@ -119,12 +147,12 @@ def _alone(path: str, params: MeasureParams, limits: ImageLimits | None, one: Me
 
 def measure_files(
     paths: Iterable[str | Path],
-    params: MeasureParams,
+    params: Params,
     *,
     jobs: int = 1,
     limits: ImageLimits | None = None,
     on_result: Callable[[FileResult], None] | None = None,
-    measure_one: MeasureOne = measure_file,
+    measure_one: MeasureOne[Params] | None = None,
 ) -> Iterator[FileResult]:
     """Yield one FileResult per path, in input order; ``jobs > 1`` measures in a process pool.
 
@@ -133,6 +161,10 @@ def measure_files(
     the others their results; then a new pool takes the rest.
     """
     items = [str(p) for p in paths]
+    if measure_one is None:
+        measure_one = cast(
+            MeasureOne[Params], measure_file if isinstance(params, MeasureParams) else measure_ruler_file
+        )
 
     def emit(result: FileResult) -> FileResult:
         if on_result:

@@ -84,6 +84,49 @@ def _grating(small: FloatArray, min_period: float, max_period: float) -> tuple[F
     return normal * peak, ratio, coherence
 
 
+def _refined_period(
+    small: FloatArray,
+    xs: FloatArray,
+    ys: FloatArray,
+    normal: FloatArray,
+    across: FloatArray,
+    axis: float,
+    sign: int,
+    period: float,
+    spec: RulerSpec,
+) -> float:
+    """The period again, from the graduation lines alone (the code track's cells, seen with them,
+    pull the whole image's spectral peak by up to a percent): the reduced image's pixels on the
+    lines, projected along the ruler in quarter-pixel bins, and the profile's spectral peak."""
+    scale = period / spec.pitch_mm
+    t_px = sign * (across[0] * xs + across[1] * ys - axis)
+    on_lines = np.zeros(np.broadcast_shapes(xs.shape, ys.shape), dtype=bool)
+    for lo, hi in spec.line_segments_mm:
+        on_lines |= (t_px > lo * scale + 2 * REDUCE) & (t_px < hi * scale - 2 * REDUCE)
+    s_px = (normal[0] * xs + normal[1] * ys) / REDUCE  # small px
+    s_px = np.broadcast_to(s_px, on_lines.shape)[on_lines]
+    if len(s_px) < 100:
+        return period
+    step = 0.25
+    index = np.floor((s_px - s_px.min()) / step).astype(np.int64)
+    count = np.bincount(index)
+    values = np.bincount(index, small[on_lines]) / np.maximum(count, 1)
+    seen = count > 0
+    profile = np.where(seen, values - values[seen].mean(), 0.0) * np.hanning(len(values))
+    size = 1 << max(14, math.ceil(math.log2(len(profile))) + 3)
+    spectrum = np.abs(np.fft.rfft(profile, size))
+    freq = np.fft.rfftfreq(size, d=step)  # cycles per small px
+    expected = REDUCE / period
+    near = (freq > 0.8 * expected) & (freq < 1.25 * expected)
+    if not near.any():
+        return period
+    k = int(np.flatnonzero(near)[np.argmax(spectrum[near])])
+    a, b, c = (math.log(max(float(v), 1e-12)) for v in spectrum[k - 1 : k + 2])
+    d = a - 2 * b + c
+    peak = (k + (0.5 * (a - c) / d if d < 0 else 0.0)) * (freq[1] - freq[0])
+    return REDUCE / peak if peak > 0 else period
+
+
 def _layout(spec: RulerSpec, period_px: float, step: float) -> tuple[FloatArray, float]:
     """The expected coherent modulation across the ruler (1 on the lines, 0 elsewhere) on a grid of
     ``step`` px from the axis, and the grid's first offset (px)."""
@@ -175,6 +218,7 @@ def coarse_ruler(gray: npt.NDArray[np.uint8], spec: RulerSpec, *, min_periods: f
             f"match {match:.2f} < {MIN_LAYOUT_MATCH}): is the whole band, lines and code track, in the frame?"
         )
     n_vec, a_vec, t0 = (normal, across, axis) if sign == 1 else (-normal, -across, -axis)
+    period = _refined_period(small, xs, ys, normal, across, axis, sign, period, spec)
     matrix = np.array(
         [
             [n_vec[0] / period, n_vec[1] / period, 0.0],

@@ -6,9 +6,11 @@ over its central half (along the ruler) in each of a few sub-strips across the t
 those taken (a speck spoils one sub-strip, not the cell), and set against the graduations' own dark
 and bright levels at the same place (``WindowPhases``): ``q = 1`` reads as a mark (bit 1), ``0`` as
 bare ground (bit 0), in between as unreadable. The bits read are then slid along the ruler's code:
-the place where they agree, with at most a quarter of the cells beyond the register length in
-disagreement and every other place disagreeing in at least 3 more cells, names the graduation at
-``s = 0``; beyond the ruler's ends the code reads 0 (no marks).
+the place where they agree, with at most one disagreement per 8 cells read beyond the register
+length and every other place disagreeing in at least 2 more cells, names the graduation at
+``s = 0``; beyond the ruler's ends the code reads 0 (no marks). Accepting a wrong place then takes
+at least ``(d + 2) / 2`` misread cells, ``d`` the code's distance between two places over the
+cells read (3 or more over 28 cells, the shortest stretch the envelope allows: RULER.md).
 """
 
 from __future__ import annotations
@@ -26,7 +28,9 @@ FloatArray = npt.NDArray[np.float64]
 #: A cell is a mark above this normalised darkness, bare ground below 1 - it.
 MARK_LEVEL = 0.65
 #: Every other place of the code must disagree with the cells read in at least this many more cells.
-MIN_MARGIN = 3
+MIN_MARGIN = 2
+#: Disagreements accepted at the place found: one per this many cells read beyond the register length.
+CELLS_PER_DISAGREEMENT = 8
 
 
 @dataclass(frozen=True)
@@ -84,7 +88,7 @@ def cell_darkness(
     """
     n = bins[:, 0]
     valid = (n > 0) & np.isfinite(bin_s)
-    pos = bin_s * cells_per_pitch
+    pos = np.where(valid, bin_s, 0.0) * cells_per_pitch
     cell = np.rint(pos).astype(np.int64)
     central = valid & (np.abs(pos - cell) <= 0.25)
     if not central.any():
@@ -150,7 +154,7 @@ def read_code(cells: npt.NDArray[np.int64], darkness: FloatArray, spec: RulerSpe
     disagree = np.where(on_ruler, disagree, read + MIN_MARGIN + 1)
     order_idx = np.argsort(disagree, kind="stable")
     best, second = int(disagree[order_idx[0]]), int(disagree[order_idx[1]]) if len(g) > 1 else read
-    allowed = (read - order) // 4
+    allowed = (read - order) // CELLS_PER_DISAGREEMENT
     graduation = int(g[order_idx[0]])
     if best > allowed or second - best < MIN_MARGIN:
         where = graduation * spec.pitch_mm

@@ -1,17 +1,18 @@
 """Where the ruler measurement looks: the strips of one pass over the pixels.
 
-Across the ruler (``t``, periods), from the lower tips up: the lower tip zone (strips one pixel
-wide), the phase strips of the lines' lower part, the code track's sub-strips, the phase strips of
-the upper part, the upper tip zone. Along the ruler each strip covers the stretch over which it is
-wholly inside the frame: phase strips in whole windows (``window_periods`` long, centred in the
-stretch), the code in bins of 1/16 period, the tip zones in bins of 1/32 period over the stretch
-common to their strips.
+Across the ruler (``t``, periods), from the lower tips up: the phase strips of the lines' lower
+part, the code track's sub-strips, the phase strips of the upper part; and apart (they overlap the
+phase strips), the two tip zones in strips one pixel wide. Along the ruler the phase strips cover
+every part of them in the frame, in windows of ``window_periods`` (a window at the frame's edge
+holds fewer pixels); the code and tip strips the stretch over which they are wholly inside the
+frame, the code in bins of 1/64 period, the tip zones in bins of 1/32 period.
 """
 
 from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -20,31 +21,36 @@ import numpy.typing as npt
 from station.vision._ruler_bins import Strips
 from station.vision._ruler_frame import RulerFrame
 from station.vision._ruler_params import RulerParams
-from station.vision._ruler_phase import BINS_PER_PERIOD
+from station.vision._ruler_phase import BINS_PER_WINDOW
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
 #: Sub-strips across the code track (a cell's value is their median).
 CODE_SUBSTRIPS = 3
-CODE_BINS_PER_PERIOD = 16
+CODE_BINS_PER_PERIOD = 64
 TIP_BINS_PER_PERIOD = 32
-#: Half-width of a tip zone outside the lines (px).
-TIP_OUTSIDE_PX = 12.0
+#: Extent of a tip zone beyond the lines' tips and inside them (px): symmetric enough about the
+#: step that the fit of its blurred profile is not pulled by a mismatch of the profile's shape.
+TIP_OUTSIDE_PX = 10.0
+TIP_INSIDE_PX = 9.0
 
 
 @dataclass(frozen=True)
 class Plan:
-    """The strips of one pass and what each is for (row numbers in ``strips.table``)."""
+    """The strips of one pass and what each is for (row numbers in ``strips.table``).
+
+    ``tips``: the lower and upper tip zones, each its own strips (they overlap the phase strips, so
+    they are binned apart), or None outside the full pass or where a zone is not in the frame.
+    """
 
     strips: Strips
     phase_rows: tuple[int, ...]
     window_starts: FloatArray
+    window_lengths: FloatArray
     window_strip: IntArray
-    window_length: float
     code_rows: tuple[int, ...]
-    lower_tip_rows: tuple[int, ...]
-    upper_tip_rows: tuple[int, ...]
+    tips: tuple[Strips | None, Strips | None]
 
     def rows(self, bins: FloatArray, rows: tuple[int, ...]) -> FloatArray:
         """The bins of the given strips, in order."""
@@ -73,37 +79,32 @@ def plan(
     def stretch(lo: float, hi: float) -> tuple[float, float] | None:
         return frame.stretch(lo, hi, width, height)
 
+    def reach(lo: float, hi: float) -> tuple[float, float] | None:
+        spans = [r for r in (frame.s_range(lo, width, height), frame.s_range(hi, width, height)) if r]
+        return (min(r[0] for r in spans), max(r[1] for r in spans)) if spans else None
+
     half = spec.line_length_mm / 2 / spec.pitch_mm
-    tip_in = margin
-    if full:
-        lo_t = -half - TIP_OUTSIDE_PX * px
-        zone = stretch(lo_t, -half + tip_in)
-        if zone is not None:
-            edges = np.arange(lo_t, -half + tip_in - 1e-9, px)
-            for a in edges:
-                b = min(a + px, -half + tip_in)
-                rows.append(
-                    (a, b, zone[0], TIP_BINS_PER_PERIOD, math.ceil((zone[1] - zone[0]) * 32), "lower")
-                )
     parts = [(lo / spec.pitch_mm, hi / spec.pitch_mm) for lo, hi in spec.line_segments_mm]
     code_lo, code_hi = (v / spec.pitch_mm for v in spec.code_track_mm)
     for number, (lo, hi) in enumerate(parts):
-        a = lo + (tip_in if number == 0 else margin)
-        b = hi - (margin if number == 0 else tip_in)
+        a, b = lo + margin, hi - margin
         if b - a < 2 * px:
             continue
         count = max(1, round((b - a) / (params.strip_px * px)))
         edges = np.linspace(a, b, count + 1)
         for s_lo_t, s_hi_t in itertools.pairwise(edges):
-            span = stretch(float(s_lo_t), float(s_hi_t))
+            # every part of the strip in the frame: windows partly outside it hold fewer pixels
+            span = reach(float(s_lo_t), float(s_hi_t))
             if span is None:
                 continue
             windows = int((span[1] - span[0]) // length)
             if windows < 1:
                 continue
+            # whole periods (a window's phase is then at its centroid whatever the frame's residual
+            # slope), centred in the span
             start = span[0] + 0.5 * ((span[1] - span[0]) - windows * length)
-            bins = windows * round(length * BINS_PER_PERIOD)
-            rows.append((float(s_lo_t), float(s_hi_t), start, BINS_PER_PERIOD, bins, "phase"))
+            per = BINS_PER_WINDOW / length
+            rows.append((float(s_lo_t), float(s_hi_t), start, per, windows * BINS_PER_WINDOW, "phase"))
         if full and number == 0:
             edges = np.linspace(code_lo + margin, code_hi - margin, CODE_SUBSTRIPS + 1)
             for a2, b2 in itertools.pairwise(edges):
@@ -111,34 +112,39 @@ def plan(
                 if span is not None:
                     bins = math.ceil((span[1] - span[0]) * CODE_BINS_PER_PERIOD)
                     rows.append((float(a2), float(b2), span[0], CODE_BINS_PER_PERIOD, bins, "code"))
-    if full:
-        hi_t = half + TIP_OUTSIDE_PX * px
-        zone = stretch(half - tip_in, hi_t)
-        if zone is not None:
-            edges = np.arange(half - tip_in, hi_t - 1e-9, px)
-            for a in edges:
-                b = min(a + px, hi_t)
-                rows.append(
-                    (a, b, zone[0], TIP_BINS_PER_PERIOD, math.ceil((zone[1] - zone[0]) * 32), "upper")
-                )
-    rows.sort(key=lambda r: r[0])
     table = np.array([r[:5] for r in rows], dtype=np.float64).reshape(-1, 5)
     kinds = [r[5] for r in rows]
     phase = tuple(i for i, k in enumerate(kinds) if k == "phase")
     starts: list[float] = []
     strip: list[int] = []
-    per = round(length * BINS_PER_PERIOD)
     for number, i in enumerate(phase):
-        count = int(table[i, 4]) // per
+        count = int(table[i, 4]) // BINS_PER_WINDOW
         starts += [table[i, 2] + j * length for j in range(count)]
         strip += [number] * count
+    tips: tuple[Strips | None, Strips | None] = (None, None)
+    if full:
+        tips = (_tip_zone(-half, -1.0, px, stretch), _tip_zone(half, 1.0, px, stretch))
     return Plan(
         strips=Strips(table) if len(table) else Strips(np.array([[0.0, 1.0, 0.0, 1.0, 1.0]])),
         phase_rows=phase,
         window_starts=np.array(starts, dtype=np.float64),
+        window_lengths=np.full(len(starts), length),
         window_strip=np.array(strip, dtype=np.int64),
-        window_length=length,
         code_rows=tuple(i for i, k in enumerate(kinds) if k == "code"),
-        lower_tip_rows=tuple(i for i, k in enumerate(kinds) if k == "lower"),
-        upper_tip_rows=tuple(i for i, k in enumerate(kinds) if k == "upper"),
+        tips=tips,
     )
+
+
+def _tip_zone(
+    tip: float, outward: float, px: float, stretch: Callable[[float, float], tuple[float, float] | None]
+) -> Strips | None:
+    """One tip zone: strips one pixel wide from ``TIP_INSIDE_PX`` inside the lines to
+    ``TIP_OUTSIDE_PX`` beyond their tips (``outward``: the direction of ``t`` beyond them)."""
+    inner, outer = tip - outward * TIP_INSIDE_PX * px, tip + outward * TIP_OUTSIDE_PX * px
+    lo, hi = min(inner, outer), max(inner, outer)
+    zone = stretch(lo, hi)
+    if zone is None:
+        return None
+    edges = np.arange(lo, hi - 1e-9, px)
+    bins = math.ceil((zone[1] - zone[0]) * TIP_BINS_PER_PERIOD)
+    return Strips(np.array([[a, min(a + px, hi), zone[0], TIP_BINS_PER_PERIOD, bins] for a in edges]))

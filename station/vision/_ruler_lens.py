@@ -32,13 +32,13 @@ def _grid(matrix: tuple[float, ...], dist: tuple[float, ...], height: int, width
         points = np.stack([xs.ravel(), ys.ravel()], axis=1).reshape(-1, 1, 2)
         ideal = np.array([[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]])
         criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-12)
-        out = cv2.undistortPointsIter(points, k, np.array(dist, dtype=np.float64), None, ideal, criteria)
-        out = out.reshape(height, width, 2)
-        ux, uy = np.ascontiguousarray(out[..., 0]), np.ascontiguousarray(out[..., 1])
+        out = cv2.undistortPointsIter(points, k, np.array(dist, dtype=np.float64), np.eye(3), ideal, criteria)
+        grid = np.asarray(out, dtype=np.float64).reshape(height, width, 2)
+        ux, uy = np.ascontiguousarray(grid[..., 0]), np.ascontiguousarray(grid[..., 1])
     else:
         yn = (ys - cy) / fy
         xn = (xs - cx - k[0, 1] * yn) / fx
-        ux, uy = cx + f * xn, cy + f * yn
+        ux, uy = np.asarray(cx + f * xn, dtype=np.float64), np.asarray(cy + f * yn, dtype=np.float64)
     ux.setflags(write=False)
     uy.setflags(write=False)
     return ux, uy

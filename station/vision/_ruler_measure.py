@@ -16,7 +16,7 @@ import numpy as np
 import numpy.typing as npt
 
 from station.vision._image import check_quality, image_bit_depth, to_gray8
-from station.vision._ruler_bins import fold
+from station.vision._ruler_bins import Strips, fold
 from station.vision._ruler_coarse import coarse_ruler
 from station.vision._ruler_code import cell_darkness, read_code
 from station.vision._ruler_errors import OffRulerError, TooFewGraduationsError
@@ -42,6 +42,8 @@ QUANTISATION_DN = 0.3
 #: The first pass looks at every second pixel of every second row (the frame it gives is only the
 #: second pass's starting point).
 FIRST_PASS_STEP = 2
+#: A window (at the frame's edge) with fewer pixels than this fraction of the median is left out.
+MIN_WINDOW_FILL = 0.25
 #: A window whose contrast is below this fraction of the median shows no graduations (a ruler's end).
 MIN_WINDOW_CONTRAST = 0.3
 
@@ -90,7 +92,7 @@ def measure_ruler(
     final = _corrected(frame, correction, gray.shape)
     remap = _remap(correction)
     code_bins = second.rows(bins, second.code_rows)
-    dark, bright = _levels(second, phases, correction, code_bins, remap)
+    dark, bright = _levels(second, phases, code_bins, remap)
     cells, darkness = cell_darkness(
         code_bins,
         remap(code_bins),
@@ -100,7 +102,14 @@ def measure_ruler(
         bright,
     )
     reading = read_code(cells, darkness, spec)
-    tips = _tips(second, bins, (frame, final), remap, spec.line_length_mm / 2 / spec.pitch_mm, phases, period)
+    lower, upper = second.tips
+    if lower is None or upper is None:
+        raise OffRulerError(
+            "the tips of the graduation lines are not in view on both sides: bring the whole pattern "
+            "across the ruler into the frame"
+        )
+    zones = ((lower, fold(gray, frame, lower, coords)), (upper, fold(gray, frame, upper, coords)))
+    tips = _tips(zones, (frame, final), remap, spec.line_length_mm / 2 / spec.pitch_mm, phases, period)
     final = final.sheared(-tips.axis(0.0), -tips.slope)
     s_ref, t_ref = final.point(*reference)
     grad_s, _ = final.gradient(*reference)
@@ -156,7 +165,7 @@ def _phase_pass(
             "ruler in the frame, or turn the camera so that it runs along the frame's long side"
         )
     w = windows_from_bins(
-        layout.rows(bins, layout.phase_rows), layout.window_starts, layout.window_length, layout.window_strip
+        layout.rows(bins, layout.phase_rows), layout.window_starts, layout.window_lengths, layout.window_strip
     )
     phases = window_phases(w, outlier_sigma=p.outlier_sigma, noise_floor_dn=QUANTISATION_DN, quick=quick)
     contrast = np.abs(phases.dark - phases.bright)
@@ -166,9 +175,10 @@ def _phase_pass(
             f"the graduations' contrast is {median:.1f} DN (at least {p.min_contrast_dn:g} needed): check "
             "focus, exposure and lighting, and that the ruler is in view"
         )
-    present = contrast >= MIN_WINDOW_CONTRAST * median
+    pixels = w.moments[:, 0]
+    present = (contrast >= MIN_WINDOW_CONTRAST * median) & (pixels >= MIN_WINDOW_FILL * np.median(pixels))
     span = w.moments[present, 1]
-    reach = float(span.max() - span.min()) + layout.window_length if present.any() else 0.0
+    reach = float(span.max() - span.min()) + float(np.median(layout.window_lengths)) if present.any() else 0.0
     if reach < p.min_periods:
         raise TooFewGraduationsError(
             f"graduations are seen over {reach:.1f} periods only (at least {p.min_periods:g} needed): the "
@@ -178,6 +188,7 @@ def _phase_pass(
         delta=phases.delta,
         info=np.where(present, phases.info, 0.0),
         amplitude=phases.amplitude,
+        contrast=phases.contrast,
         dark=phases.dark,
         bright=phases.bright,
         noise_dn=phases.noise_dn,
@@ -196,7 +207,10 @@ def _corrected(frame: RulerFrame, correction: FrameCorrection, shape: tuple[int,
     return moved.squared(x, y)
 
 
-def _remap(correction: FrameCorrection):  # type: ignore[no-untyped-def]
+Remap = Callable[[FloatArray], FloatArray]
+
+
+def _remap(correction: FrameCorrection) -> Remap:
     """Mean ``s`` of bins, moved into the corrected frame (first order in the correction)."""
     e0, e1, e2, e3, e4 = correction.e
 
@@ -212,11 +226,10 @@ def _remap(correction: FrameCorrection):  # type: ignore[no-untyped-def]
 
 
 def _levels(
-    layout: Plan, phases: WindowPhases, correction: FrameCorrection, code_bins: FloatArray, remap
-) -> tuple[FloatArray, FloatArray]:  # type: ignore[no-untyped-def]
+    layout: Plan, phases: WindowPhases, code_bins: FloatArray, remap: Remap
+) -> tuple[FloatArray, FloatArray]:
     """The graduations' dark and bright levels at each code bin: a line along ``s`` fitted to the
     windows of the two phase strips beside the code track."""
-    del correction
     s_bins = remap(code_bins)
     strips = layout.window_strip
     # the phase strips just below and above the code track: the last of the lower part and the next
@@ -227,7 +240,7 @@ def _levels(
     below = max((k for k in order if phase_t[k] < code_t), default=order[0], key=lambda k: phase_t[k])
     above = min((k for k in order if phase_t[k] > code_t), default=order[-1], key=lambda k: phase_t[k])
     near = np.isin(strips, [below, above]) & (phases.info > 0)
-    centres = layout.window_starts + layout.window_length / 2
+    centres = layout.window_starts + layout.window_lengths / 2
     s = centres[near]
     fill = np.where(np.isfinite(s_bins), s_bins, 0.0)
     if len(s) >= 2:
@@ -240,28 +253,22 @@ def _levels(
 
 
 def _tips(
-    layout: Plan,
-    bins: FloatArray,
+    zones: tuple[tuple[Strips, FloatArray], tuple[Strips, FloatArray]],
     frames: tuple[RulerFrame, RulerFrame],
-    remap: Callable[[FloatArray], FloatArray],
+    remap: Remap,
     half: float,
     phases: WindowPhases,
     period: float,
 ) -> Tips:
-    """The tips' lines in the final frame (``frames[1]``) from the tip zones' strips binned in the
-    pass's frame (``frames[0]``); each zone split in two halves along the ruler (``half``: the
+    """The tips' lines in the final frame (``frames[1]``) from the tip zones' bins (``zones``,
+    binned in ``frames[0]``); each zone split in two halves along the ruler (``half``: the
     design's tip, periods)."""
     binned, final = frames
     points: dict[tuple[bool, int], tuple[float, float]] = {}
     blurs: list[float] = []
-    for rows, upper in ((layout.lower_tip_rows, False), (layout.upper_tip_rows, True)):
-        if len(rows) < 6:
-            raise OffRulerError(
-                "the tips of the graduation lines are not in view on both sides: bring the whole pattern "
-                "across the ruler into the frame"
-            )
-        zone = layout.rows(bins, rows)
-        strip = layout.row_ids(rows)
+    for (strips, zone), upper in ((zones[0], False), (zones[1], True)):
+        rows = len(strips.table)
+        strip = np.repeat(np.arange(rows), strips.table[:, 4].astype(np.int64))
         s_zone = remap(zone)
         finite = np.isfinite(s_zone)
         lo, hi = float(np.min(s_zone[finite])), float(np.max(s_zone[finite]))
@@ -269,7 +276,7 @@ def _tips(
         profile, _ = template_value(phases.template, np.where(finite, s_zone, 0.0))
         for side in (0, 1):
             inside = finite & ((s_zone < cut) if side == 0 else (s_zone >= cut))
-            m, t = contrasts(zone[inside], strip[inside], len(rows), profile[inside], phases.noise_dn)
+            m, t = contrasts(zone[inside], strip[inside], rows, profile[inside], phases.noise_dn)
             t_e, blur = fit_tip(t, m, half if upper else -half, 1.5 / period, inside_below=upper)
             blurs.append(blur)
             raw_s = float(zone[inside, 2].sum()) / max(float(zone[inside, 0].sum()), 1.0)

@@ -40,7 +40,7 @@ class RulerParams(BaseModel):
     )
     strip_px: float = Field(16.0, ge=4, le=200, description="width of a phase strip across the ruler (px)")
     margin_px: float = Field(
-        7.0, ge=2, le=50, description="distance kept from the line tips and the code gap (px)"
+        3.0, ge=1, le=50, description="distance kept from the line tips and the code gap (px)"
     )
     outlier_sigma: float = Field(
         5.0, gt=2, le=50, description="bins this many sigmas off the model are dropped"

@@ -1,7 +1,7 @@
 """The graduations' phase: where the grating is, to a few nanometres, from every graduation in view.
 
-The graduation band is cut into strips across the ruler and each strip into windows two periods
-long. A window's bins (``_ruler_bins``: 256 per period, each pixel at its own ``s``) hold a
+The graduation band is cut into strips across the ruler and each strip into windows about two
+periods long. A window's bins (``_ruler_bins``: 256 per window, each pixel at its own ``s``) hold a
 super-resolved profile of the graduations there. Each window's phase ``delta`` (how far its
 graduations sit from whole values of ``s``) is fitted against one profile shared by all windows
 (the template: the window profiles aligned, normalised and made symmetric about a graduation's
@@ -19,6 +19,7 @@ sharp edges): for the nominal camera the phase's variance is several times lower
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,14 +29,16 @@ from station.vision._kernels import compiled
 
 FloatArray = npt.NDArray[np.float64]
 
-#: Bins per period of the phase strips.
-BINS_PER_PERIOD = 128
+#: Bins per phase window (a window is ``window_periods`` to twice that long: some 128 per period).
+BINS_PER_WINDOW = 256
 #: Samples per period of the tabulated template (cubic interpolation between them).
 TEMPLATE_SAMPLES = 4096
 #: Fine bins over half a period into which the aligned profiles are averaged before the fit.
 FOLD_BINS = 1024
-#: Cosine terms of the template (the graduations' profile is even about a graduation's centre).
+#: Cosine terms of the template (the graduations' profile is even about a graduation's centre), at
+#: most, and at least.
 HARMONICS = 48
+MIN_HARMONICS = 8
 #: Tukey's biweight constant (95 % efficiency on Gaussian residuals).
 TUKEY_C = 4.685
 
@@ -58,14 +61,14 @@ class Windows:
 
 
 def windows_from_bins(
-    bins: FloatArray, starts: FloatArray, length: float, strip: npt.NDArray[np.int64]
+    bins: FloatArray, starts: FloatArray, lengths: FloatArray, strip: npt.NDArray[np.int64]
 ) -> Windows:
-    """Group consecutive bins into windows of ``length`` periods starting at ``starts``."""
-    per = round(length * BINS_PER_PERIOD)
-    b = bins.reshape(len(starts), per, bins.shape[1])
+    """Group consecutive bins into windows (``BINS_PER_WINDOW`` each) starting at ``starts``, each
+    ``lengths`` periods long."""
+    b = bins.reshape(len(starts), BINS_PER_WINDOW, bins.shape[1])
     n = b[..., 0]
     safe = np.maximum(n, 1.0)
-    centres = starts[:, None] + (np.arange(per) + 0.5) / BINS_PER_PERIOD
+    centres = starts[:, None] + (np.arange(BINS_PER_WINDOW) + 0.5) / BINS_PER_WINDOW * lengths[:, None]
     s = np.where(n > 0, b[..., 2] / safe, centres)
     total = n.sum(axis=1)
     ok = np.maximum(total, 1.0)
@@ -78,7 +81,7 @@ def windows_from_bins(
         n=np.ascontiguousarray(n),
         level=np.ascontiguousarray(b[..., 1] / safe),
         s=np.ascontiguousarray(s),
-        u=np.ascontiguousarray(s - (starts[:, None] + length / 2)),
+        u=np.ascontiguousarray(s - (starts + lengths / 2)[:, None]),
         moments=moments,
         strip=strip,
     )
@@ -136,17 +139,27 @@ def _template(w: Windows, weight: FloatArray, coef: FloatArray, delta: FloatArra
     # normal equations of the cosine series from the moments M_j = sum w cos(2 pi j x), j <= 2K:
     # sum w cos(k a) cos(l a) = (M_|k-l| + M_(k+l)) / 2 (a matrix-vector product, no matrix product)
     weights = total[seen]
-    cosines = _cosines(mean_x, 2 * HARMONICS)
+    harmonics = _resolvable(mean_x)
+    cosines = _cosines(mean_x, 2 * harmonics)
     moments = weights @ cosines
-    k = np.arange(HARMONICS + 1)
+    k = np.arange(harmonics + 1)
     normal_eq = 0.5 * (moments[np.abs(k[:, None] - k[None, :])] + moments[k[:, None] + k[None, :]])
-    normal_eq += np.eye(HARMONICS + 1) * 1e-10 * np.trace(normal_eq) / (HARMONICS + 1)
-    series = np.linalg.solve(normal_eq, (weights * mean_v) @ cosines[:, : HARMONICS + 1])
+    normal_eq += np.eye(harmonics + 1) * 1e-10 * np.trace(normal_eq) / (harmonics + 1)
+    series = np.linalg.solve(normal_eq, (weights * mean_v) @ cosines[:, : harmonics + 1])
     # tabulated by an inverse real FFT: grid[j] = sum_k series[k] cos(2 pi k j / TEMPLATE_SAMPLES)
     spectrum = np.zeros(TEMPLATE_SAMPLES // 2 + 1)
-    spectrum[: HARMONICS + 1] = series
-    spectrum[1 : HARMONICS + 1] *= 0.5
+    spectrum[: harmonics + 1] = series
+    spectrum[1 : harmonics + 1] *= 0.5
     return np.asarray(np.fft.irfft(spectrum, TEMPLATE_SAMPLES) * TEMPLATE_SAMPLES)
+
+
+def _resolvable(x: FloatArray) -> int:
+    """How many cosine terms the folded phases ``x`` (0 to 1/2) can pin down: fewer than
+    ``1 / (2 gap)`` for their widest gap. A ruler along the pixel rows with a whole number of pixels
+    per period samples the period at that many phases only; elsewhere every harmonic is kept."""
+    edges = np.concatenate([[0.0], np.sort(x), [0.5]])
+    gap = float(np.max(np.diff(edges)))
+    return int(np.clip(math.floor(0.5 / max(gap, 1e-9)) - 1, MIN_HARMONICS, HARMONICS))
 
 
 def _cosines(x: FloatArray, top: int) -> FloatArray:
@@ -165,7 +178,8 @@ def _cosines(x: FloatArray, top: int) -> FloatArray:
 class WindowPhases:
     """Each window's phase (periods), its information (1 / variance at unit noise), and the fit.
 
-    ``dark``/``bright``: the fitted grey levels at a graduation's centre and midway between two, at
+    ``contrast``: the template's coefficient (its scale in grey levels, signed); ``dark``/``bright``:
+    the fitted grey levels at a graduation's centre and midway between two, at
     each window's centre (for reading the code); ``noise_dn``: the robust rms of the bins' residuals
     scaled to one pixel; ``rejected``: bins dropped as outliers.
     """
@@ -173,6 +187,7 @@ class WindowPhases:
     delta: FloatArray
     info: FloatArray
     amplitude: FloatArray
+    contrast: FloatArray
     dark: FloatArray
     bright: FloatArray
     noise_dn: float
@@ -223,7 +238,7 @@ _COSINE.setflags(write=False)
 def _step(coef: FloatArray) -> FloatArray:
     """The Gauss-Newton step of each window's phase from a round's coefficients (at most 0.1 period)."""
     contrast = np.where(np.abs(coef[:, 2]) > 1e-9, coef[:, 2], 1e-9)
-    return np.asarray(np.clip(coef[:, 4] / contrast, -0.1, 0.1))
+    return np.asarray(np.nan_to_num(np.clip(coef[:, 4] / contrast, -0.1, 0.1)))
 
 
 def window_phases(
@@ -231,35 +246,29 @@ def window_phases(
 ) -> WindowPhases:
     """Fit every window's phase against the shared template (module docstring).
 
-    ``quick``: the fundamental only, no template and no outliers dropped (the first, coarse pass).
+    ``quick``: no outliers dropped and one template only (the first, coarse pass).
     """
     n = w.n
     delta = np.zeros(len(n))
     coef = np.zeros((len(n), 6))
-    for _ in range(1 if not quick else 2):  # the fundamental: dark graduations at whole s + delta
+    for _ in range(1):  # the fundamental: dark graduations at whole s + delta
         coef, _ = _round(w, n, _COSINE, delta, residual=False)
-        delta = delta + np.arctan2(-2 * np.pi * coef[:, 4], -coef[:, 2]) / (2 * np.pi)
-    amp = np.hypot(coef[:, 2], 2 * np.pi * coef[:, 4])
+        delta = delta + np.nan_to_num(np.arctan2(-2 * np.pi * coef[:, 4], -coef[:, 2]) / (2 * np.pi))
+    amp = np.nan_to_num(np.hypot(coef[:, 2], 2 * np.pi * coef[:, 4]))
     centre = np.angle(np.sum(amp**2 * n.sum(axis=1) * np.exp(2j * np.pi * delta))) / (2 * np.pi)
     delta = centre + ((delta - centre + 0.5) % 1.0 - 0.5)
-    if quick:
-        info = amp**2 * coef[:, 5]
-        return WindowPhases(
-            delta=delta,
-            info=np.where(np.isfinite(info), info, 0.0),
-            amplitude=amp,
-            dark=coef[:, 0] - amp,
-            bright=coef[:, 0] + amp,
-            noise_dn=noise_floor_dn,
-            rejected=0,
-            template=_COSINE,
-        )
     start = np.column_stack([coef[:, 0], coef[:, 1], -amp, np.zeros_like(amp)])
     grid = _template(w, n, start, delta)
+    weight = n
+    noise = noise_floor_dn
     # a round against the first template; a second with the bins' residuals: outliers dropped and
     # the template made again from what is left; two more rounds against it
     coef, _ = _round(w, n, grid, delta, residual=False)
     delta = delta + _step(coef)
+    if quick:
+        coef, _ = _round(w, n, grid, delta, residual=False)
+        delta = delta + _step(coef)
+        return _phases(coef, delta, grid, noise, 0)
     coef, residual = _round(w, n, grid, delta, residual=True)
     assert residual is not None
     noise = max(1.4826 * float(np.median(np.abs(residual[n > 0]))), noise_floor_dn)
@@ -269,17 +278,26 @@ def window_phases(
     for _ in range(2):
         coef, _ = _round(w, weight, grid, delta, residual=False)
         delta = delta + _step(coef)
+    return _phases(coef, delta, grid, noise, int(np.count_nonzero((weight == 0) & (n > 0))))
+
+
+def _phases(
+    coef: FloatArray, delta: FloatArray, grid: FloatArray, noise: float, rejected: int
+) -> WindowPhases:
+    """The windows' phases and what goes with them, from the last round's coefficients."""
     info = coef[:, 2] ** 2 * coef[:, 5]
+    info = np.where(np.isfinite(info) & np.isfinite(delta), info, 0.0)
     dark_v, _ = template_value(grid, np.zeros(1))
     bright_v, _ = template_value(grid, np.full(1, 0.5))
     return WindowPhases(
-        delta=delta,
-        info=np.where(np.isfinite(info), info, 0.0),
+        delta=np.nan_to_num(delta),
+        info=info,
         amplitude=np.abs(coef[:, 2]),
+        contrast=coef[:, 2],
         dark=coef[:, 0] + coef[:, 2] * float(dark_v[0]),
         bright=coef[:, 0] + coef[:, 2] * float(bright_v[0]),
         noise_dn=noise,
-        rejected=int(np.count_nonzero((weight == 0) & (n > 0))),
+        rejected=rejected,
         template=grid,
     )
 
@@ -316,13 +334,12 @@ def fit_correction(w: Windows, phases: WindowPhases, *, rounds: int = 5) -> Fram
     prior = np.diag([0.0, 0.0, 0.0, 1.0, 1.0]) / PERSPECTIVE_PRIOR**2
     robust = good.astype(np.float64)
     scale = 1.0
-    e = np.zeros(5)
-    cov = np.zeros((5, 5))
-    residual = np.zeros(len(u))
+    e: FloatArray = np.zeros(5)
+    cov: FloatArray = np.zeros((5, 5))
+    residual: FloatArray = np.zeros(len(u))
     for _ in range(rounds):
         wts = robust / sigma**2
-        normal = design.T @ (design * wts[:, None]) + prior
-        cov = np.linalg.inv(normal)
+        cov = np.asarray(np.linalg.inv(design.T @ (design * wts[:, None]) + prior))
         e = cov @ (design.T @ (wts * phases.delta))
         residual = phases.delta - design @ e
         z = residual / sigma

@@ -21,8 +21,8 @@ import numpy as np
 import numpy.typing as npt
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-#: The default ruler's primitive feedback polynomial: x^10 + x^7 + 1 (a maximal-length LFSR).
-DEFAULT_TAPS = (10, 7)
+#: The default ruler's primitive feedback polynomial: x^11 + x^9 + 1 (a maximal-length LFSR).
+DEFAULT_TAPS = (11, 9)
 
 
 class RulerCode(BaseModel):
@@ -35,7 +35,7 @@ class RulerCode(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
     order: int = Field(
-        10, ge=4, le=20, description="register length: any `order` consecutive cells name their place"
+        11, ge=4, le=20, description="register length: any `order` consecutive cells name their place"
     )
     taps: tuple[int, ...] = Field(
         DEFAULT_TAPS,
@@ -43,7 +43,7 @@ class RulerCode(BaseModel):
         description="exponents of the feedback polynomial (x^10 + x^7 + 1: (10, 7))",
     )
     seed: int = Field(1, ge=1, description="initial register state (non-zero), bit 0 the first output")
-    cells_per_pitch: int = Field(2, ge=1, le=4, description="code cells per graduation pitch")
+    cells_per_pitch: int = Field(4, ge=1, le=8, description="code cells per graduation pitch")
 
     @model_validator(mode="after")
     def _check(self) -> RulerCode:
@@ -57,7 +57,7 @@ class RulerCode(BaseModel):
         if period != (1 << self.order) - 1:
             raise ValueError(
                 f"code taps {self.taps} are not a primitive polynomial of degree {self.order}: the sequence "
-                f"repeats after {period} bits instead of {(1 << self.order) - 1}; use e.g. (10, 7)"
+                f"repeats after {period} bits instead of {(1 << self.order) - 1}; use e.g. (11, 9)"
             )
         return self
 
@@ -94,7 +94,7 @@ class RulerSpec(BaseModel):
     """One ruler: its graduations, the calibrated pitch with the certificate's uncertainties, its code.
 
     Units in each field's description. The defaults describe the station's design (RULER.md): 250 mm,
-    0.5 mm pitch, 2 mm lines, a 10-bit code at 0.25 mm cells beside them.
+    0.5 mm pitch, 3.2 mm lines split by an 11-bit code at 0.125 mm cells.
     """
 
     model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
