@@ -213,7 +213,8 @@ def _stripes(
             step = (d > 0).astype(np.float64)
             near = valid & (np.abs(d) < reach)
             if near.any():
-                step[near] = box_step(d[near], np.abs(lines[kk[near], 0]), np.abs(lines[kk[near], 1]), sigma_px)
+                normal = lines[kk[near]]
+                step[near] = box_step(d[near], np.abs(normal[:, 0]), np.abs(normal[:, 1]), sigma_px)
             out += np.where(valid, sign * step, 0.0)
     return np.clip(out, 0.0, 1.0)
 

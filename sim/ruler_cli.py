@@ -56,8 +56,8 @@ def render_ruler_set(args: argparse.Namespace) -> int:
         return _fail(str(exc))
     preset = header["preset"]
     sys.stderr.write(
-        f"station sim: {len(images)} {header['kind']} ruler images, preset {preset['name']} v{preset['version']}, "
-        f"seed {header['seed']}, {time.perf_counter() - start:.1f} s -> {out}\n"
+        f"station sim: {len(images)} {header['kind']} ruler images, preset {preset['name']} "
+        f"v{preset['version']}, seed {header['seed']}, {time.perf_counter() - start:.1f} s -> {out}\n"
     )
     sys.stdout.write(f"{out}\n")
     return 0

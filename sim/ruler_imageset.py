@@ -114,7 +114,7 @@ def random_ruler_views(
     count: int,
     *,
     seed: int,
-    envelope: RulerEnvelope = RulerEnvelope(),  # noqa: B008 - frozen dataclass, immutable
+    envelope: RulerEnvelope = RulerEnvelope(),
     ruler: RulerSpec = RulerSpec(),  # noqa: B008 - frozen model, immutable
     camera: CameraSpec = CameraSpec(),  # noqa: B008 - frozen dataclass, immutable
 ) -> list[tuple[Pose, float]]:
@@ -188,7 +188,7 @@ def render_ruler_random_set(
     preset: NoisePreset | str = "nominal",
     count: int = 48,
     seed: int = 0,
-    envelope: RulerEnvelope = RulerEnvelope(),  # noqa: B008 - frozen dataclass, immutable
+    envelope: RulerEnvelope = RulerEnvelope(),
     ruler: RulerSpec = RulerSpec(),  # noqa: B008 - frozen model, immutable
     camera: CameraSpec = CameraSpec(),  # noqa: B008 - frozen dataclass, immutable
     texture_seed: int = 0,
@@ -236,7 +236,7 @@ def render_ruler_validation_set(
     preset: NoisePreset | str = "nominal",
     seed: int = 0,
     anchor_mm: float = 100.0,
-    table: TableSpec = TableSpec(),
+    table: TableSpec = TableSpec(),  # noqa: B008 - frozen dataclass, immutable
     ruler: RulerSpec = RulerSpec(),  # noqa: B008 - frozen model, immutable
     camera: CameraSpec = CameraSpec(),  # noqa: B008 - frozen dataclass, immutable
     texture_seed: int = 0,

@@ -27,7 +27,7 @@ FloatArray = npt.NDArray[np.float64]
 #: Reduction of the coarse stage's image.
 REDUCE = 4
 #: A spectral peak this many times the spectrum's median within the searched ring is a grating.
-MIN_PEAK_RATIO = 12.0
+MIN_PEAK_RATIO = 4.0
 #: The gradients must share one direction this much (structure tensor's coherence, 0-1).
 MIN_COHERENCE = 0.3
 #: The matched layout must explain this much of the modulation profile (normalised correlation).
@@ -127,6 +127,30 @@ def _refined_period(
     return REDUCE / peak if peak > 0 else period
 
 
+def _overlap_correlation(
+    profile: FloatArray, valid: npt.NDArray[np.bool_], pattern: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Pearson correlation of ``pattern`` with ``profile`` at every lag (``np.correlate``'s 'full'
+    order), over the bins they share where the profile is ``valid`` (-1 where they share less than
+    60 % of the pattern: a pattern partly beyond the frame still matches what is in it), and the
+    fraction of the pattern shared."""
+    v = valid.astype(np.float64)
+    x = profile * v
+
+    def corr(a: FloatArray, b: FloatArray) -> FloatArray:
+        return np.asarray(np.correlate(a, b, mode="full"))
+
+    ones = np.ones_like(pattern)
+    n = corr(v, ones)
+    sx, sxx = corr(x, ones), corr(x * profile, ones)
+    sy, syy, sxy = corr(v, pattern), corr(v, pattern * pattern), corr(x, pattern)
+    safe = np.maximum(n, 1.0)
+    cov = sxy - sx * sy / safe
+    var = np.maximum(sxx - sx * sx / safe, 0.0) * np.maximum(syy - sy * sy / safe, 0.0)
+    enough = (n >= 0.6 * len(pattern)) & (var > 1e-12)
+    return np.where(enough, cov / np.sqrt(np.where(enough, var, 1.0)), -1.0), n / len(pattern)
+
+
 def _layout(spec: RulerSpec, period_px: float, step: float) -> tuple[FloatArray, float]:
     """The expected coherent modulation across the ruler (1 on the lines, 0 elsewhere) on a grid of
     ``step`` px from the axis, and the grid's first offset (px)."""
@@ -189,17 +213,13 @@ def coarse_ruler(gray: npt.NDArray[np.uint8], spec: RulerSpec, *, min_periods: f
         )
     profile /= top
     pattern, first = _layout(spec, period, step)
-    best = (-2.0, 1, 0.0)
+    best = (-2.0, 1, 0.0, -1.0)
     centres = t_min + (np.arange(bins) + 0.5) * step
     for sign in (1, -1):
         pat = pattern if sign == 1 else pattern[::-1]
         start = first if sign == 1 else -first - (len(pattern) - 1) * step
-        corr = np.correlate(profile, pat - pat.mean(), mode="full")
-        ones = np.ones_like(pat)
-        sums = np.correlate(profile, ones, mode="full")
-        spread = np.correlate(profile**2, ones, mode="full") - sums**2 / len(pat)
-        norm = np.sqrt(np.maximum(spread, 0.0) * np.sum((pat - pat.mean()) ** 2))
-        score = np.where(norm > 1e-12, corr / np.maximum(norm, 1e-12), -1.0)
+        r, shared = _overlap_correlation(profile, count > 0, pat)
+        score = r * np.sqrt(shared)  # the whole pattern in view is the likelier reading
         k = int(np.argmax(score))
         if score[k] > best[0]:
             # pattern element 0 aligned with profile bin (k - len(pat) + 1): axis position in px
@@ -210,8 +230,8 @@ def coarse_ruler(gray: npt.NDArray[np.uint8], spec: RulerSpec, *, min_periods: f
                 d = a - 2 * b + c
                 sub = 0.5 * (a - c) / d if d < 0 else 0.0
             axis = float(centres[0] + (offset + sub) * step - start)
-            best = (float(score[k]), sign, axis)
-    match, sign, axis = best
+            best = (float(score[k]), sign, axis, float(r[k]))
+    _, sign, axis, match = best
     if match < MIN_LAYOUT_MATCH:
         raise OffRulerError(
             f"a grating of period {period:.1f} px is in view but not the ruler's pattern across it (layout "

@@ -3,9 +3,10 @@
 Across the ruler (``t``, periods), from the lower tips up: the phase strips of the lines' lower
 part, the code track's sub-strips, the phase strips of the upper part; and apart (they overlap the
 phase strips), the two tip zones in strips one pixel wide. Along the ruler the phase strips cover
-every part of them in the frame, in windows of ``window_periods`` (a window at the frame's edge
-holds fewer pixels); the code and tip strips the stretch over which they are wholly inside the
-frame, the code in bins of 1/64 period, the tip zones in bins of 1/32 period.
+every part of them in the frame, in windows of a whole number of periods, ``window_periods`` or
+fewer so that a strip holds at least three (a window at the frame's edge holds fewer pixels); the
+code and tip strips the stretch over which they are wholly inside the frame, the code in bins of
+1/64 period, the tip zones in bins of 1/32 period.
 """
 
 from __future__ import annotations
@@ -97,13 +98,14 @@ def plan(
             span = reach(float(s_lo_t), float(s_hi_t))
             if span is None:
                 continue
-            windows = int((span[1] - span[0]) // length)
+            # whole periods (a window's phase is then at its centroid whatever the frame's residual
+            # slope), at most window_periods and at least 3 windows where the span allows, centred
+            size = float(min(length, max(1, math.floor((span[1] - span[0]) / 3))))
+            windows = int((span[1] - span[0]) // size)
             if windows < 1:
                 continue
-            # whole periods (a window's phase is then at its centroid whatever the frame's residual
-            # slope), centred in the span
-            start = span[0] + 0.5 * ((span[1] - span[0]) - windows * length)
-            per = BINS_PER_WINDOW / length
+            start = span[0] + 0.5 * ((span[1] - span[0]) - windows * size)
+            per = BINS_PER_WINDOW / size
             rows.append((float(s_lo_t), float(s_hi_t), start, per, windows * BINS_PER_WINDOW, "phase"))
         if full and number == 0:
             edges = np.linspace(code_lo + margin, code_hi - margin, CODE_SUBSTRIPS + 1)
@@ -116,10 +118,13 @@ def plan(
     kinds = [r[5] for r in rows]
     phase = tuple(i for i, k in enumerate(kinds) if k == "phase")
     starts: list[float] = []
+    lengths: list[float] = []
     strip: list[int] = []
     for number, i in enumerate(phase):
         count = int(table[i, 4]) // BINS_PER_WINDOW
-        starts += [table[i, 2] + j * length for j in range(count)]
+        size = BINS_PER_WINDOW / table[i, 3]
+        starts += [table[i, 2] + j * size for j in range(count)]
+        lengths += [size] * count
         strip += [number] * count
     tips: tuple[Strips | None, Strips | None] = (None, None)
     if full:
@@ -128,7 +133,7 @@ def plan(
         strips=Strips(table) if len(table) else Strips(np.array([[0.0, 1.0, 0.0, 1.0, 1.0]])),
         phase_rows=phase,
         window_starts=np.array(starts, dtype=np.float64),
-        window_lengths=np.full(len(starts), length),
+        window_lengths=np.array(lengths, dtype=np.float64),
         window_strip=np.array(strip, dtype=np.int64),
         code_rows=tuple(i for i, k in enumerate(kinds) if k == "code"),
         tips=tips,

@@ -44,7 +44,7 @@ QUANTISATION_DN = 0.3
 FIRST_PASS_STEP = 2
 #: A window (at the frame's edge) with fewer pixels than this fraction of the median is left out.
 MIN_WINDOW_FILL = 0.25
-#: A window whose contrast is below this fraction of the median shows no graduations (a ruler's end).
+#: A window whose contrast is below this fraction of the best windows' shows no graduations (an end).
 MIN_WINDOW_CONTRAST = 0.3
 
 
@@ -168,15 +168,21 @@ def _phase_pass(
         layout.rows(bins, layout.phase_rows), layout.window_starts, layout.window_lengths, layout.window_strip
     )
     phases = window_phases(w, outlier_sigma=p.outlier_sigma, noise_floor_dn=QUANTISATION_DN, quick=quick)
-    contrast = np.abs(phases.dark - phases.bright)
-    median = float(np.median(contrast))
-    if median < p.min_contrast_dn:
+    contrast = np.where(np.isfinite(phases.dark - phases.bright), np.abs(phases.dark - phases.bright), 0.0)
+    top = float(np.percentile(contrast, 90))
+    if top < p.min_contrast_dn:
         raise OffRulerError(
-            f"the graduations' contrast is {median:.1f} DN (at least {p.min_contrast_dn:g} needed): check "
+            f"the graduations' contrast is {top:.1f} DN (at least {p.min_contrast_dn:g} needed): check "
             "focus, exposure and lighting, and that the ruler is in view"
         )
     pixels = w.moments[:, 0]
-    present = (contrast >= MIN_WINDOW_CONTRAST * median) & (pixels >= MIN_WINDOW_FILL * np.median(pixels))
+    graduated = contrast >= MIN_WINDOW_CONTRAST * top
+    # a window beside one without graduations holds the ruler's end: its profile is cut, not shifted
+    strip = layout.window_strip
+    same_before = np.concatenate([[False], strip[1:] == strip[:-1]])
+    same_after = np.concatenate([strip[:-1] == strip[1:], [False]])
+    ended = (same_before & ~np.roll(graduated, 1)) | (same_after & ~np.roll(graduated, -1))
+    present = graduated & ~ended & (pixels >= MIN_WINDOW_FILL * np.median(pixels))
     span = w.moments[present, 1]
     reach = float(span.max() - span.min()) + float(np.median(layout.window_lengths)) if present.any() else 0.0
     if reach < p.min_periods:
@@ -195,7 +201,10 @@ def _phase_pass(
         rejected=phases.rejected,
         template=phases.template,
     )
-    return int(present.sum()), kept, fit_correction(w, kept)
+    focal = p.camera_matrix[0][0] if p.camera_matrix is not None else p.focal_px
+    period = 1.0 / float(np.hypot(*frame.gradient(gray.shape[1] / 2.0, gray.shape[0] / 2.0)[0]))
+    perspective = math.tan(math.radians(p.max_tilt_deg)) * period / focal
+    return int(present.sum()), kept, fit_correction(w, kept, perspective=perspective)
 
 
 def _corrected(frame: RulerFrame, correction: FrameCorrection, shape: tuple[int, int]) -> RulerFrame:

@@ -36,11 +36,17 @@ class RulerParams(BaseModel):
         5.0, ge=3, le=100, description="fewest graduation periods in view across the whole pattern"
     )
     window_periods: int = Field(
-        2, ge=1, le=8, description="length of a phase window along the ruler (periods)"
+        3, ge=1, le=8, description="longest phase window along the ruler (periods): at least 3 per strip"
     )
     strip_px: float = Field(16.0, ge=4, le=200, description="width of a phase strip across the ruler (px)")
     margin_px: float = Field(
         3.0, ge=1, le=50, description="distance kept from the line tips and the code gap (px)"
+    )
+    max_tilt_deg: float = Field(
+        5.0, gt=0, le=45, description="tilt of the ruler's plane the perspective terms allow (a loose prior)"
+    )
+    focal_px: float = Field(
+        6800.0, gt=0, le=1e6, description="focal length (px) for that prior; the camera matrix's when given"
     )
     outlier_sigma: float = Field(
         5.0, gt=2, le=50, description="bins this many sigmas off the model are dropped"

@@ -37,7 +37,7 @@ TEMPLATE_SAMPLES = 4096
 FOLD_BINS = 1024
 #: Cosine terms of the template (the graduations' profile is even about a graduation's centre), at
 #: most, and at least.
-HARMONICS = 48
+HARMONICS = 32
 MIN_HARMONICS = 8
 #: Tukey's biweight constant (95 % efficiency on Gaussian residuals).
 TUKEY_C = 4.685
@@ -129,8 +129,11 @@ def _template(w: Windows, weight: FloatArray, coef: FloatArray, delta: FloatArra
     normal = (w.level - coef[:, 0:1] - coef[:, 1:2] * w.u) / np.where(np.abs(contrast) > 1e-9, contrast, 1e-9)
     phase = w.s + delta[:, None]
     phase = np.abs(phase - np.rint(phase))  # 0 at a graduation's centre, 1/2 midway
-    keep = weight > 0
-    x, v, wt = phase[keep], normal[keep], weight[keep]
+    # each bin weighed by its information, n contrast^2: a window with no graduations (beyond the
+    # ruler's end) has none, and its noise, divided by a contrast near 0, stays out
+    informed = weight * np.nan_to_num(contrast) ** 2
+    keep = (informed > 0) & np.isfinite(normal)
+    x, v, wt = phase[keep], normal[keep], informed[keep]
     index = np.minimum((x * 2 * FOLD_BINS).astype(np.int64), FOLD_BINS - 1)
     total = np.bincount(index, wt, minlength=FOLD_BINS)
     seen = total > 0
@@ -318,12 +321,16 @@ class FrameCorrection:
     scale: float
 
 
-#: Prior standard deviation of the perspective terms (periods^-1): tilts of ~10 deg at 68 mm.
-PERSPECTIVE_PRIOR = 2e-3
+def fit_correction(
+    w: Windows, phases: WindowPhases, *, perspective: float, rounds: int = 5
+) -> FrameCorrection:
+    """Fit the frame's correction to the windows' phases: weighted, Tukey-robust least squares.
 
-
-def fit_correction(w: Windows, phases: WindowPhases, *, rounds: int = 5) -> FrameCorrection:
-    """Fit the frame's correction to the windows' phases: weighted, Tukey-robust least squares."""
+    ``perspective``: the prior standard deviation of the perspective terms (per period): a tilt
+    ``tau`` of the ruler's plane seen at ``f`` px with a period of ``P`` px changes the scale by
+    ``tan(tau) P / f`` per period. It only keeps them in bounds where the view cannot tell them
+    (a short stretch); elsewhere the windows decide.
+    """
     m = w.moments
     good = (m[:, 0] > 0) & (phases.info > 0)
     sigma = phases.noise_dn / np.sqrt(np.where(good, phases.info, 1.0))
@@ -331,7 +338,7 @@ def fit_correction(w: Windows, phases: WindowPhases, *, rounds: int = 5) -> Fram
     u = m[:, 1] - s_centre
     t = m[:, 2]
     design = np.column_stack([np.ones_like(u), u, t, -(u * u + m[:, 3]), -(u * t + m[:, 4])])
-    prior = np.diag([0.0, 0.0, 0.0, 1.0, 1.0]) / PERSPECTIVE_PRIOR**2
+    prior = np.diag([0.0, 0.0, 0.0, 1.0, 1.0]) / perspective**2
     robust = good.astype(np.float64)
     scale = 1.0
     e: FloatArray = np.zeros(5)

@@ -113,28 +113,49 @@ def fit_tip(
     The model is ``(p0 + p1 (t - t_e)) Phi(+/-(t_e - t) / sigma)`` over the whole zone, which
     reaches about as far beyond the tips as inside the lines, so that a mismatch of the model's
     shape (the pixel box, the strips' width) pulls ``t_e`` neither way. ``inside_below``: the lines
-    lie at ``t < t_e`` (the upper tip) rather than above it. Gauss-Newton from ``start``, ``blur``.
+    lie at ``t < t_e`` (the upper tip) rather than above it. Started from the profile's half-way
+    crossing (``start``, ``blur`` if it has none), then Levenberg-Marquardt.
     """
     sign = 1.0 if inside_below else -1.0
     ok = np.isfinite(t) & np.isfinite(m)
-    t, m = t[ok], m[ok]
-    inside = sign * (start - t) > 3 * blur
-    params = np.array([start, blur, float(np.median(m[inside])) if inside.any() else float(np.max(m)), 0.0])
-    for _ in range(10):
-        te, sg, a0, a1 = params
-        z = sign * (te - t) / sg
+    order = np.argsort(sign * t[ok])  # from inside the lines outward
+    t, m = t[ok][order], m[ok][order]
+    if len(t) < 6:
+        return float(start), float(blur)
+    plateau = float(np.median(m[:4]))
+    q = m / plateau if plateau != 0 else m
+    te = float(start)
+    below = np.flatnonzero(q < 0.5)
+    if len(below) and below[0] > 0:
+        i = int(below[0])
+        te = float(t[i - 1] + (0.5 - q[i - 1]) * (t[i] - t[i - 1]) / (q[i] - q[i - 1]))
+    params = np.array([te, blur, plateau, 0.0])
+
+    def residual(p: FloatArray) -> tuple[FloatArray, FloatArray]:
+        z = sign * (p[0] - t) / p[1]
         step = ndtr(z)
         dens = np.exp(-0.5 * z * z) / np.sqrt(2 * np.pi)
-        level = a0 + a1 * (t - te)
+        level = p[2] + p[3] * (t - p[0])
         jac = np.column_stack(
-            [level * dens * sign / sg - a1 * step, -level * dens * z / sg, step, (t - te) * step]
+            [level * dens * sign / p[1] - p[3] * step, -level * dens * z / p[1], step, (t - p[0]) * step]
         )
+        return m - level * step, jac
+
+    r, jac = residual(params)
+    cost, damping = float(r @ r), 1e-3
+    for _ in range(30):
         normal = jac.T @ jac
-        if not np.all(np.isfinite(normal)) or abs(np.linalg.det(normal)) < 1e-300:
-            break
-        delta = np.linalg.solve(normal, jac.T @ (m - level * step))
-        params = params + delta
-        params[1] = max(abs(params[1]), 1e-3 * blur)
-        if abs(delta[0]) < 1e-9:
-            break
+        step = np.linalg.solve(normal + damping * np.diag(np.diag(normal) + 1e-300), jac.T @ r)
+        trial = params + step
+        trial[1] = max(abs(trial[1]), 0.1 * blur)
+        r_new, jac_new = residual(trial)
+        cost_new = float(r_new @ r_new)
+        if cost_new < cost:
+            params, r, jac, cost, damping = trial, r_new, jac_new, cost_new, damping * 0.3
+            if abs(step[0]) < 1e-9:
+                break
+        else:
+            damping *= 10.0
+            if damping > 1e8:
+                break
     return float(params[0]), float(params[1])
