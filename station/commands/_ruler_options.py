@@ -54,9 +54,13 @@ def load_ruler(path: str) -> RulerSpec:
 
 def ruler_params_from_args(parser: argparse.ArgumentParser, args: argparse.Namespace) -> RulerParams:
     """The ruler measurement's parameters; a cross-only option or a bad value is a usage error."""
-    for option, value in (("--mode", args.mode), ("--scale-calibration", args.scale_calibration)):
-        if value is not None:
-            parser.error(f"{option} applies to the cross only; the ruler's scale is its calibrated pitch")
+    if args.mode is not None:
+        parser.error("--mode applies to the cross only (the ruler has one method)")
+    if args.scale_calibration is not None:
+        parser.error(
+            "--scale-calibration applies to the cross only: the ruler's scale is its calibrated pitch "
+            "(--ruler FILE describes it)"
+        )
     try:
         values: dict[str, object] = dict(parse_ruler_assignments(args.assignments))
         if args.ruler is not None:
