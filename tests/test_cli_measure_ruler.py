@@ -31,7 +31,7 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     cross, _ = render(pose_for_center_px(310.4, 250.2, rotation_deg=4.0), rng=np.random.default_rng(1))
     cv2.imwrite(str(d / "cross.png"), cross)
     (d / "spec.json").write_text(RulerSpec(name="RS-0042").model_dump_json())
-    (d / "other_code.json").write_text(RulerSpec(code=RulerCode(seed=99)).model_dump_json())
+    (d / "other_code.json").write_text(RulerSpec(code=RulerCode(taps=(11, 2))).model_dump_json())
     (d / "bad_spec.json").write_text(json.dumps({"pitch_mm": 0.5, "length_mm": 250.1}))
     (d / "camera.json").write_text(
         json.dumps({"camera_matrix": CameraSpec().matrix().tolist(), "dist_coeffs": [0, 0, 0, 0, 0]})

@@ -66,6 +66,28 @@ class RulerFrame:
         values = [self.point(x, y)[0] for x, y in inside]
         return min(values), max(values)
 
+    def s_ranges(
+        self, ts: FloatArray, width: int, height: int, border: float = 1.0
+    ) -> tuple[FloatArray, FloatArray]:
+        """``s_range`` for many lines ``t = ts`` at once: ``(lo, hi)`` arrays, NaN where a line misses."""
+        m = self.matrix
+        ts = np.asarray(ts, dtype=np.float64)
+        a = m[1, 0] - ts * m[2, 0]
+        b = m[1, 1] - ts * m[2, 1]
+        c = m[1, 2] - ts * m[2, 2]
+        x0, x1, y0, y1 = border, width - 1 - border, border, height - 1 - border
+        with np.errstate(divide="ignore", invalid="ignore"):
+            xs = np.stack([np.full_like(ts, x0), np.full_like(ts, x1), -(b * y0 + c) / a, -(b * y1 + c) / a])
+            ys = np.stack([-(a * x0 + c) / b, -(a * x1 + c) / b, np.full_like(ts, y0), np.full_like(ts, y1)])
+            inside = (xs >= x0 - 1e-9) & (xs <= x1 + 1e-9) & (ys >= y0 - 1e-9) & (ys <= y1 + 1e-9)
+            s, _ = self.map(xs, ys)
+        s = np.where(inside & np.isfinite(s), s, np.nan)
+        enough = np.sum(inside, axis=0) >= 2
+        with np.errstate(all="ignore"):
+            lo = np.where(enough, np.nanmin(np.where(enough, s, 0.0), axis=0), np.nan)
+            hi = np.where(enough, np.nanmax(np.where(enough, s, 0.0), axis=0), np.nan)
+        return lo, hi
+
     def stretch(
         self, t_from: float, t_to: float, width: int, height: int, border: float = 1.0
     ) -> tuple[float, float] | None:

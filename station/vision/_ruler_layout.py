@@ -76,23 +76,38 @@ def plan(
     margin = params.margin_px * px
     length = float(params.window_periods)
     rows: list[tuple[float, float, float, float, float, str]] = []
-
-    def stretch(lo: float, hi: float) -> tuple[float, float] | None:
-        return frame.stretch(lo, hi, width, height)
-
-    def reach(lo: float, hi: float) -> tuple[float, float] | None:
-        spans = [r for r in (frame.s_range(lo, width, height), frame.s_range(hi, width, height)) if r]
-        return (min(r[0] for r in spans), max(r[1] for r in spans)) if spans else None
-
     half = spec.line_length_mm / 2 / spec.pitch_mm
     parts = [(lo / spec.pitch_mm, hi / spec.pitch_mm) for lo, hi in spec.line_segments_mm]
     code_lo, code_hi = (v / spec.pitch_mm for v in spec.code_track_mm)
-    for number, (lo, hi) in enumerate(parts):
+    part_edges = []
+    for lo, hi in parts:
         a, b = lo + margin, hi - margin
-        if b - a < 2 * px:
-            continue
-        count = max(1, round((b - a) / (params.strip_px * px)))
-        edges = np.linspace(a, b, count + 1)
+        count = max(1, round((b - a) / (params.strip_px * px))) if b - a >= 2 * px else 0
+        part_edges.append(np.linspace(a, b, count + 1) if count else np.zeros(0))
+    code_edges = np.linspace(code_lo + margin, code_hi - margin, CODE_SUBSTRIPS + 1)
+    tip_bounds = [-half - TIP_OUTSIDE_PX * px, -half + TIP_INSIDE_PX * px, half - TIP_INSIDE_PX * px]
+    tip_bounds.append(half + TIP_OUTSIDE_PX * px)
+    # every line t = const the plan asks about, in one vectorised call
+    asked = np.concatenate([*part_edges, code_edges, tip_bounds])
+    lows, highs = frame.s_ranges(asked, width, height)
+    known = {float(t): (float(lo), float(hi)) for t, lo, hi in zip(asked, lows, highs, strict=True)}
+
+    def one(t: float) -> tuple[float, float] | None:
+        lo, hi = known[float(t)]
+        return None if math.isnan(lo) else (lo, hi)
+
+    def stretch(lo: float, hi: float) -> tuple[float, float] | None:
+        first, second = one(lo), one(hi)
+        if first is None or second is None:
+            return None
+        a, b = max(first[0], second[0]), min(first[1], second[1])
+        return (a, b) if b > a else None
+
+    def reach(lo: float, hi: float) -> tuple[float, float] | None:
+        spans = [r for r in (one(lo), one(hi)) if r]
+        return (min(r[0] for r in spans), max(r[1] for r in spans)) if spans else None
+
+    for number, edges in enumerate(part_edges):
         for s_lo_t, s_hi_t in itertools.pairwise(edges):
             # every part of the strip in the frame: windows partly outside it hold fewer pixels
             span = reach(float(s_lo_t), float(s_hi_t))
@@ -108,8 +123,7 @@ def plan(
             per = BINS_PER_WINDOW / size
             rows.append((float(s_lo_t), float(s_hi_t), start, per, windows * BINS_PER_WINDOW, "phase"))
         if full and number == 0:
-            edges = np.linspace(code_lo + margin, code_hi - margin, CODE_SUBSTRIPS + 1)
-            for a2, b2 in itertools.pairwise(edges):
+            for a2, b2 in itertools.pairwise(code_edges):
                 span = stretch(float(a2), float(b2))
                 if span is not None:
                     bins = math.ceil((span[1] - span[0]) * CODE_BINS_PER_PERIOD)
@@ -128,7 +142,10 @@ def plan(
         strip += [number] * count
     tips: tuple[Strips | None, Strips | None] = (None, None)
     if full:
-        tips = (_tip_zone(-half, -1.0, px, stretch), _tip_zone(half, 1.0, px, stretch))
+        tips = (
+            _tip_zone(tip_bounds[0], tip_bounds[1], px, stretch),
+            _tip_zone(tip_bounds[2], tip_bounds[3], px, stretch),
+        )
     return Plan(
         strips=Strips(table) if len(table) else Strips(np.array([[0.0, 1.0, 0.0, 1.0, 1.0]])),
         phase_rows=phase,
@@ -141,12 +158,9 @@ def plan(
 
 
 def _tip_zone(
-    tip: float, outward: float, px: float, stretch: Callable[[float, float], tuple[float, float] | None]
+    lo: float, hi: float, px: float, stretch: Callable[[float, float], tuple[float, float] | None]
 ) -> Strips | None:
-    """One tip zone: strips one pixel wide from ``TIP_INSIDE_PX`` inside the lines to
-    ``TIP_OUTSIDE_PX`` beyond their tips (``outward``: the direction of ``t`` beyond them)."""
-    inner, outer = tip - outward * TIP_INSIDE_PX * px, tip + outward * TIP_OUTSIDE_PX * px
-    lo, hi = min(inner, outer), max(inner, outer)
+    """One tip zone ``lo <= t < hi``: strips one pixel wide over the stretch where it is all in the frame."""
     zone = stretch(lo, hi)
     if zone is None:
         return None

@@ -78,6 +78,8 @@ def measure_ruler(
     bit_depth = image_bit_depth(image, p.bit_depth or significant_bits)
     gray = to_gray8(image, bit_depth=bit_depth)
     check_quality(gray)
+    if spec.marks == "bright":  # the method reads dark marks on a bright ground
+        gray = np.ascontiguousarray(255 - gray)
     coords, reference = lens_coordinates(p.camera_matrix, p.dist_coeffs, gray.shape)
     coarse = coarse_ruler(gray, spec, min_periods=p.min_periods)
     period = coarse.period_px

@@ -166,15 +166,13 @@ def _resolvable(x: FloatArray) -> int:
 
 
 def _cosines(x: FloatArray, top: int) -> FloatArray:
-    """``cos(2 pi k x)`` for ``k = 0 .. top``, (len(x), top + 1), by the recurrence
-    ``cos(k a) = 2 cos(a) cos((k - 1) a) - cos((k - 2) a)``."""
-    out = np.empty((len(x), top + 1))
-    out[:, 0] = 1.0
-    c = np.cos(2 * np.pi * x)
-    out[:, 1] = c
-    for k in range(2, top + 1):
-        out[:, k] = 2.0 * c * out[:, k - 1] - out[:, k - 2]
-    return out
+    """``cos(2 pi k x)`` for ``k = 0 .. top``, (len(x), top + 1): real parts of the powers of
+    ``exp(2 pi i x)`` (one cumulative product)."""
+    z = np.exp(2j * np.pi * np.asarray(x, dtype=np.float64))
+    powers = np.empty((len(z), top + 1), dtype=np.complex128)
+    powers[:, 0] = 1.0
+    powers[:, 1:] = z[:, None]
+    return np.ascontiguousarray(np.cumprod(powers, axis=1).real)
 
 
 @dataclass(frozen=True)

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from functools import lru_cache
+from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -128,6 +129,9 @@ class RulerSpec(BaseModel):
     )
     code_gap_mm: float = Field(
         0.2, ge=0.05, le=5, description="clear gap between the code track and the graduation lines each side"
+    )
+    marks: Literal["dark", "bright"] = Field(
+        "dark", description="the lines and code cells against the ground: dark (the design) or bright"
     )
     code: RulerCode = Field(default_factory=RulerCode, description="the absolute code")
 

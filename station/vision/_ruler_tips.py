@@ -152,7 +152,7 @@ def fit_tip(
         cost_new = float(r_new @ r_new)
         if cost_new < cost:
             params, r, jac, cost, damping = trial, r_new, jac_new, cost_new, damping * 0.3
-            if abs(step[0]) < 1e-9:
+            if abs(step[0]) < 1e-6:
                 break
         else:
             damping *= 10.0

@@ -15,7 +15,7 @@ import pytest
 from sim._render_camera import CameraSpec, pose_for_center_px
 from sim.ruler import RulerTruth, render_ruler
 from sim.ruler_imageset import random_ruler_views
-from station.vision import RulerMeasurement, RulerParams, measure_ruler
+from station.vision import MeasurementError, RulerMeasurement, RulerParams, RulerSpec, measure_ruler
 
 PX_PER_MM = 100.0
 
@@ -125,3 +125,15 @@ def test_the_json_object() -> None:
     assert diagnostics["px_per_mm"] == pytest.approx(100.0, rel=1e-3)
     assert diagnostics["position_u_nm"] > 0
     assert diagnostics["ruler"] == "ruler-250"
+
+
+def test_bright_marks_are_read_as_such() -> None:
+    # chrome marks on dark glass: the same ruler seen in negative, described as such
+    image, truth = render_ruler(
+        pose_for_center_px(320, 240, rotation_deg=-20.0), anchor_mm=88.0, rng=np.random.default_rng(2)
+    )
+    negative = np.ascontiguousarray(255 - image)
+    m = measure_ruler(negative, RulerParams(ruler=RulerSpec(marks="bright")))
+    assert abs(m.position_mm - truth.position_mm) * PX_PER_MM <= 0.006
+    with pytest.raises(MeasurementError):
+        measure_ruler(negative)  # read as dark marks: graduations between the lines, the code inverted

@@ -97,7 +97,7 @@ def test_another_rulers_code() -> None:
     image, _ = render_ruler(
         pose_for_center_px(320, 240, rotation_deg=-12.0), anchor_mm=140.0, rng=np.random.default_rng(7)
     )
-    other = RulerParams(ruler=RulerSpec(name="other", code=RulerCode(seed=1234)))
+    other = RulerParams(ruler=RulerSpec(name="other", code=RulerCode(taps=(11, 2))))
     message = _refused(image, CodeInconsistentError, other)
     assert "is this the ruler described" in message
 
