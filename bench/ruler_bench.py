@@ -69,7 +69,7 @@ def accuracy(set_dir: Path) -> dict[str, Any]:
     read: list[int] = []
     stated: list[float] = []
     for name, truth in images:
-        image = cv2.imread(str(set_dir / name), cv2.IMREAD_UNCHANGED)
+        image = _read(set_dir / name)
         for key, params in (("origin", RulerParams()), ("principal", with_model)):
             try:
                 m = measure_ruler(image, params)
@@ -203,7 +203,7 @@ def crb_position_px(pose: Pose, anchor_mm: float, preset_name: str) -> tuple[flo
 def speed(set_dir: Path, rounds: int) -> dict[str, Any]:
     """Thread CPU ms per frame (decode excluded), compiled kernels and numpy reference, per round."""
     _, images = load_ruler_truth(set_dir)
-    frames = [cv2.imread(str(set_dir / name), cv2.IMREAD_UNCHANGED) for name, _ in images]
+    frames = [_read(set_dir / name) for name, _ in images]
     out: dict[str, Any] = {}
     for choice in ("c", "numpy"):
         if choice == "c" and compiled() is None:
@@ -221,6 +221,13 @@ def speed(set_dir: Path, rounds: int) -> dict[str, Any]:
                 per_round.append(statistics.median(times))
         out[choice] = {"ms_median_per_round": per_round, "ms_range": [min(per_round), max(per_round)]}
     return out
+
+
+def _read(path: Path) -> np.ndarray:
+    image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if image is None:
+        raise FileNotFoundError(f"{path}: not readable")
+    return np.asarray(image)
 
 
 def _try(frame: np.ndarray) -> None:
