@@ -41,9 +41,11 @@ class RulerCode(BaseModel):
     taps: tuple[int, ...] = Field(
         DEFAULT_TAPS,
         min_length=2,
-        description="exponents of the feedback polynomial (x^10 + x^7 + 1: (10, 7))",
+        description="exponents of the feedback polynomial (x^11 + x^9 + 1: (11, 9))",
     )
-    seed: int = Field(1, ge=1, description="initial register state (non-zero), bit 0 the first output")
+    seed: int = Field(
+        1, ge=1, description="initial register state (non-zero): where along the sequence cell 0 starts"
+    )
     cells_per_pitch: int = Field(4, ge=1, le=8, description="code cells per graduation pitch")
 
     @model_validator(mode="after")
