@@ -49,6 +49,7 @@ test: lint typecheck layers pytest
 
 bench: setup
 	$(BIN)/python -m bench
+	$(BIN)/python -m bench.ruler_bench
 	$(BIN)/python -m bench.station_bench
 	$(BIN)/python -m bench.compute_bench
 	$(BIN)/python -m bench.service_load

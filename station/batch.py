@@ -14,7 +14,18 @@ from pathlib import Path
 from typing import Any
 
 from station.imageio import ImageFileError, ImageLimits, LoadedImage, decode_image, load_image
-from station.vision import Measurement, MeasurementError, MeasureParams, measure
+from station.vision import (
+    Measurement,
+    MeasurementError,
+    MeasureParams,
+    RulerMeasurement,
+    RulerParams,
+    measure,
+    measure_ruler,
+)
+
+#: What a file is measured with: the cross's parameters, or the ruler's (``station measure --artifact``).
+AnyParams = MeasureParams | RulerParams
 
 #: ``--jobs`` may ask for at most this many worker processes per core.
 MAX_JOBS_PER_CORE = 4
@@ -32,7 +43,7 @@ def display_name(path: str | Path) -> tuple[str, str | None]:
 
 @dataclass(frozen=True)
 class FileResult:
-    """One file's outcome: a measurement, or an error message and its code.
+    """One file's outcome: a measurement (of the cross, or ``ruler``'s), or an error and its code.
 
     ``file`` is printable text (U+FFFD where the name's bytes are not UTF-8); ``file_bytes_b64`` holds
     the raw name, base64, only for such names.
@@ -43,6 +54,7 @@ class FileResult:
     error: str | None = None
     code: str | None = None
     file_bytes_b64: str | None = None
+    ruler: RulerMeasurement | None = None
 
     @classmethod
     def for_path(cls, path: str | Path, **fields: Any) -> FileResult:
@@ -51,20 +63,22 @@ class FileResult:
 
     @property
     def ok(self) -> bool:
-        return self.measurement is not None
+        return self.measurement is not None or self.ruler is not None
 
     def to_json(self) -> dict[str, Any]:
         """The ``station measure --json`` line for this file."""
         head: dict[str, Any] = {"file": self.file}
         if self.file_bytes_b64 is not None:
             head["file_bytes_b64"] = self.file_bytes_b64
-        if self.measurement is None:
+        result = self.measurement if self.measurement is not None else self.ruler
+        if result is None:
             return {**head, "ok": False, "error": self.error, "code": self.code}
-        return {**head, **self.measurement.to_json()}
+        return {**head, **result.to_json()}
 
 
-def measure_file(path: str | Path, params: MeasureParams, limits: ImageLimits | None = None) -> FileResult:
-    """Read and measure one file; never raises for a bad file or image (the error is in the result)."""
+def measure_file(path: str | Path, params: AnyParams, limits: ImageLimits | None = None) -> FileResult:
+    """Read and measure one file (the cross, or the ruler with :class:`RulerParams`); never raises for a
+    bad file or image (the error is in the result)."""
     try:
         loaded = load_image(path, limits=limits)
     except ImageFileError as exc:
@@ -73,7 +87,7 @@ def measure_file(path: str | Path, params: MeasureParams, limits: ImageLimits | 
 
 
 def measure_data(
-    name: str | Path, data: bytes, params: MeasureParams, limits: ImageLimits | None = None
+    name: str | Path, data: bytes, params: AnyParams, limits: ImageLimits | None = None
 ) -> FileResult:
     """Decode and measure an image file's bytes (read elsewhere), named ``name``; as :func:`measure_file`."""
     try:
@@ -83,9 +97,11 @@ def measure_data(
     return _measure_loaded(name, loaded, params)
 
 
-def _measure_loaded(name: str | Path, loaded: LoadedImage, params: MeasureParams) -> FileResult:
+def _measure_loaded(name: str | Path, loaded: LoadedImage, params: AnyParams) -> FileResult:
     bits = loaded.significant_bits if loaded.significant_bits and 8 <= loaded.significant_bits <= 16 else None
     try:
+        if isinstance(params, RulerParams):
+            return FileResult.for_path(name, ruler=measure_ruler(loaded.image, params, significant_bits=bits))
         return FileResult.for_path(name, measurement=measure(loaded.image, params, significant_bits=bits))
     except MeasurementError as exc:
         return FileResult.for_path(name, error=exc.message, code=exc.code)
@@ -93,7 +109,7 @@ def _measure_loaded(name: str | Path, loaded: LoadedImage, params: MeasureParams
         return FileResult.for_path(name, error="out of memory while measuring this image", code="bad_file")
 
 
-MeasureOne = Callable[[str, MeasureParams, ImageLimits | None], FileResult]
+MeasureOne = Callable[[str, AnyParams, ImageLimits | None], FileResult]
 
 
 def default_jobs() -> int:

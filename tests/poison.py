@@ -10,12 +10,11 @@ import os
 import signal
 from pathlib import Path
 
-from station.batch import FileResult, measure_file
+from station.batch import AnyParams, FileResult, measure_file
 from station.imageio import ImageLimits
-from station.vision import MeasureParams
 
 
-def dies_on_poison(path: str, params: MeasureParams, limits: ImageLimits | None) -> FileResult:
+def dies_on_poison(path: str, params: AnyParams, limits: ImageLimits | None) -> FileResult:
     """``measure_file``, except that files named ``poison*`` SIGKILL the process measuring them."""
     if Path(path).name.startswith("poison"):
         os.kill(os.getpid(), signal.SIGKILL)

@@ -19,6 +19,7 @@ from station.commands._common import (
     finite_float,
     params_from_args,
 )
+from station.commands._ruler_options import add_artifact_options, ruler_params_from_args, ruler_rows
 from station.compute import ComputeError, ComputeSpec, open_backend
 from station.imageio import (
     DEFAULT_MAX_BYTES,
@@ -28,14 +29,16 @@ from station.imageio import (
     read_file_bytes,
 )
 from station.report import measurement_rows
+from station.vision import MeasureParams, RulerParams
 
 
 def register(sub: SubParsers) -> None:
     p = sub.add_parser(
         "measure",
-        help="measure the crossing in image files",
-        description="Measure the artifact's crossing in each IMAGE. Exit 0 when all were measured, "
-        "1 when any failed (or the cluster failed), 2 for usage errors.",
+        help="measure the crossing (or the ruler) in image files",
+        description="Measure the artifact's crossing (or, with --artifact ruler, the position along the "
+        "ruler) in each IMAGE. Exit 0 when all were measured, 1 when any failed (or the cluster failed), "
+        "2 for usage errors.",
     )
     p.add_argument("images", nargs="+", metavar="IMAGE")
     p.add_argument("--json", action="store_true", help="one JSON object per image per line (stdout)")
@@ -69,12 +72,17 @@ def register(sub: SubParsers) -> None:
     )
     add_measure_options(p)
     add_compute_options(p)
+    add_artifact_options(p)
     p.set_defaults(func=lambda args: run(p, args))
 
 
 def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
-    params = params_from_args(parser, args)
     spec = compute_spec(parser, args, jobs=default_jobs()) or ComputeSpec(jobs=args.jobs or default_jobs())
+    if args.artifact == "ruler":
+        return _measure(parser, args, ruler_params_from_args(parser, args), None, spec)
+    if args.ruler is not None:
+        parser.error("--ruler applies to --artifact ruler only")
+    params = params_from_args(parser, args)
     calibration: dict[str, object] | None = None
     if args.scale_calibration is not None:
         try:  # a regular file of sensible size first: a FIFO or /dev/zero would hang the read
@@ -89,6 +97,16 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         if not any(a.split("=", 1)[0].strip().lower() == "groove_width_mm" for a in args.assignments):
             params = params.with_values(groove_width_mm=cal.groove_width_mm)
         calibration = cal.record(args.scale_calibration)
+    return _measure(parser, args, params, calibration, spec)
+
+
+def _measure(
+    parser: argparse.ArgumentParser,
+    args: argparse.Namespace,
+    params: MeasureParams | RulerParams,
+    calibration: dict[str, object] | None,
+    spec: ComputeSpec,
+) -> int:
     limits = ImageLimits(
         max_bytes=max(1, int(args.max_file_mb * 2**20)), max_pixels=max(1, int(args.max_megapixels * 1e6))
     )
@@ -117,5 +135,5 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         backend.close()
     bar.close()
     if not args.json:
-        print(measurement_rows(results))
+        print(ruler_rows(results) if isinstance(params, RulerParams) else measurement_rows(results))
     return 0 if all(r.ok for r in results) else 1

@@ -8,10 +8,9 @@ import os
 from collections.abc import Callable, Iterator, Sequence
 from typing import Protocol
 
-from station.batch import FileResult
+from station.batch import AnyParams, FileResult
 from station.compute._tasks import ImageBytes, Item
 from station.imageio import ImageLimits
-from station.vision import MeasureParams
 
 #: Items a caller may give: file paths (str or path-like) or files' bytes.
 Frames = Sequence[str | os.PathLike[str] | ImageBytes]
@@ -29,7 +28,7 @@ class MeasureBackend(Protocol):
     def measure(
         self,
         items: Frames,
-        params: MeasureParams,
+        params: AnyParams,
         *,
         limits: ImageLimits | None = None,
         on_result: OnResult | None = None,

@@ -29,7 +29,7 @@ from collections.abc import Iterator
 from typing import Any
 from urllib.parse import urlsplit
 
-from station.batch import FileResult, display_name, measure_file
+from station.batch import AnyParams, FileResult, display_name, measure_file
 from station.compute._backend import Cancelled, Frames, OnResult, as_items, batch_ranges, never
 from station.compute._checks import Samples
 from station.compute._errors import (
@@ -41,7 +41,6 @@ from station.compute._errors import (
 from station.compute._tasks import ImageBytes, Item, MeasureOne, item_name, worker_died
 from station.compute._workers import admit, run_batch, same_params, samples_of, worker_names
 from station.imageio import DEFAULT_MAX_BYTES, ImageFileError, ImageLimits, read_file_bytes
-from station.vision import MeasureParams
 
 log = logging.getLogger(__name__)
 
@@ -183,7 +182,7 @@ class DaskBackend:
     def measure(
         self,
         items: Frames,
-        params: MeasureParams,
+        params: AnyParams,
         *,
         limits: ImageLimits | None = None,
         on_result: OnResult | None = None,
@@ -202,7 +201,7 @@ class DaskBackend:
             yield result
 
     def _results(
-        self, work: list[Item], params: MeasureParams, limits: ImageLimits | None, check: Cancelled
+        self, work: list[Item], params: AnyParams, limits: ImageLimits | None, check: Cancelled
     ) -> Iterator[tuple[int, FileResult]]:
         client = self.client()
         samples = {} if self.ship_images else samples_of(work)

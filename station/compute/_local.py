@@ -22,13 +22,12 @@ from concurrent.futures.process import BrokenProcessPool
 from multiprocessing.context import BaseContext
 from typing import Any
 
-from station.batch import FileResult, measure_file
+from station.batch import AnyParams, FileResult, measure_file
 from station.compute._backend import Cancelled, Frames, OnResult, as_items, batch_ranges, never
 from station.compute._errors import ComputeCancelledError, ComputeError
 from station.compute._tasks import Item, MeasureOne, item_name, measure_batch, measure_item, worker_died
 from station.imageio import ImageLimits
 from station.runtime import tune_allocator
-from station.vision import MeasureParams
 
 log = logging.getLogger(__name__)
 
@@ -93,7 +92,7 @@ class LocalBackend:
     def measure(
         self,
         items: Frames,
-        params: MeasureParams,
+        params: AnyParams,
         *,
         limits: ImageLimits | None = None,
         on_result: OnResult | None = None,
@@ -108,7 +107,7 @@ class LocalBackend:
             yield result
 
     def _results(
-        self, work: list[Item], params: MeasureParams, limits: ImageLimits | None, check: Cancelled
+        self, work: list[Item], params: AnyParams, limits: ImageLimits | None, check: Cancelled
     ) -> Iterator[FileResult]:
         if self.jobs <= 1 or len(work) < 4:
             for item in work:
@@ -147,7 +146,7 @@ class LocalBackend:
                     yield from self._alone(work[batch.start : batch.stop], params, limits, check)
 
     def _alone(
-        self, suspects: Sequence[Item], params: MeasureParams, limits: ImageLimits | None, check: Cancelled
+        self, suspects: Sequence[Item], params: AnyParams, limits: ImageLimits | None, check: Cancelled
     ) -> Iterator[FileResult]:
         """Each suspect of a dead worker once more, alone in one process (a new one after a death).
 

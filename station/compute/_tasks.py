@@ -11,13 +11,12 @@ import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from station.batch import FileResult, measure_data, measure_file
+from station.batch import AnyParams, FileResult, measure_data, measure_file
 from station.imageio import ImageLimits
-from station.vision import MeasureParams
 
 #: Measures one file by path: ``measure_file`` unless a test injects one that behaves as a crashing
 #: decoder would (it must be a module-level function, importable where the task runs).
-MeasureOne = Callable[[str, MeasureParams, ImageLimits | None], FileResult]
+MeasureOne = Callable[[str, AnyParams, ImageLimits | None], FileResult]
 
 
 @dataclass(frozen=True)
@@ -38,7 +37,7 @@ def item_name(item: Item | os.PathLike[str]) -> str:
 
 
 def measure_item(
-    item: Item, params: MeasureParams, limits: ImageLimits | None, measure_one: MeasureOne = measure_file
+    item: Item, params: AnyParams, limits: ImageLimits | None, measure_one: MeasureOne = measure_file
 ) -> FileResult:
     """One frame's result; never raises for a bad file or image."""
     if isinstance(item, ImageBytes):
@@ -48,7 +47,7 @@ def measure_item(
 
 def measure_batch(
     items: Sequence[Item],
-    params: MeasureParams,
+    params: AnyParams,
     limits: ImageLimits | None,
     measure_one: MeasureOne = measure_file,
 ) -> list[FileResult]:

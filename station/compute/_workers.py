@@ -9,13 +9,12 @@ import os
 from collections.abc import Sequence
 from typing import Any
 
-from station.batch import FileResult
+from station.batch import AnyParams, FileResult
 from station.compute import _checks
 from station.compute._errors import WorkerRefusedError
 from station.compute._tasks import Item, MeasureOne, measure_batch
 from station.imageio import ImageLimits
 from station.runtime import tune_allocator
-from station.vision import MeasureParams
 
 log = logging.getLogger(__name__)
 
@@ -29,7 +28,7 @@ def _this_worker() -> str:
 
 def run_batch(
     items: Sequence[Item],
-    params: MeasureParams,
+    params: AnyParams,
     limits: ImageLimits | None,
     measure_one: MeasureOne,
     samples: _checks.Samples,
@@ -63,7 +62,7 @@ def samples_of(work: Sequence[Item]) -> dict[str, tuple[str, int]]:
     return samples
 
 
-def same_params(params: MeasureParams) -> MeasureParams:
+def same_params(params: AnyParams) -> AnyParams:
     """The parameters' task: each worker fetches its result once and keeps it for every batch; unlike
     scattered data, the scheduler can compute it again when every worker holding it has died."""
     return params

@@ -13,6 +13,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "_ruler_kernels.h" /* the ruler measurement's kernels, in _ruler_kernels.c */
+
 /* ---------------------------------------------------------------- buffers */
 
 typedef struct {
@@ -1772,6 +1774,7 @@ static PyMethodDef methods[] = {
     {"quality", quality, METH_VARARGS, "The image quality check's percentiles and saturation."},
     {"prewitt", prewitt, METH_VARARGS, "Paper mode's operators on an 8-bit image, with their extremes."},
     {"above", above, METH_VARARGS, "Flat indices of the responses above a level in magnitude."},
+    RULER_KERNEL_METHODS
     {NULL, NULL, 0, NULL},
 };
 
