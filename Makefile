@@ -38,18 +38,24 @@ typecheck: setup
 layers: setup
 	$(BIN)/python tools/check_layers.py
 
+# The GigE simulator's tests and the Dask cluster's (a scheduler and workers started on localhost) run
+# apart from the rest: both suffer when the machine is loaded by the parallel run.
 pytest: setup
-	$(BIN)/python -m pytest -n 2 -q -m "not gige"
+	$(BIN)/python -m pytest -n 2 -q -m "not gige and not cluster"
 	$(BIN)/python -m pytest -q -m gige
+	$(BIN)/python -m pytest -q -m cluster
 
 test: lint typecheck layers pytest
 
 bench: setup
 	$(BIN)/python -m bench
+	$(BIN)/python -m bench.ruler_bench
 	$(BIN)/python -m bench.station_bench
+	$(BIN)/python -m bench.compute_bench
 	$(BIN)/python -m bench.service_load
 	$(BIN)/python -m bench.calibration_bench --seeds 10
 	$(BIN)/python -m bench.calibration_session_bench
+	$(BIN)/python -m bench.cross_check_bench
 	$(BIN)/python -m bench.page_screens --out $(OUT)/page
 
 clean:

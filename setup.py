@@ -13,7 +13,8 @@ setup(
     ext_modules=[
         Extension(
             "station.vision._ckernels",
-            sources=["station/vision/_ckernels.c"],
+            sources=["station/vision/_ckernels.c", "station/vision/_ruler_kernels.c"],
+            depends=["station/vision/_ruler_kernels.h"],
             extra_compile_args=["-O3", "-ffp-contract=off", "-fno-fast-math", "-std=c99"],
             optional=True,
         )

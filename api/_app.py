@@ -19,6 +19,7 @@ from api._page import router as page_router
 from api._routes_events import router as events_router
 from api._routes_plans import router as plans_router
 from api._routes_prompt import router as prompt_router
+from api._routes_scale_calibration import router as scale_calibration_router
 from api._routes_sessions import router as sessions_router
 from api._routes_station import router as station_router
 from api._service import StationService
@@ -110,7 +111,15 @@ def create_app(service: StationService, access: Access, *, close_service: bool =
     app.state.stopping = asyncio.Event()
     _errors.install(app)
     app.add_middleware(_ClientsLeaving)
-    for router in (station_router, plans_router, sessions_router, prompt_router, events_router, page_router):
+    for router in (
+        station_router,
+        plans_router,
+        scale_calibration_router,
+        sessions_router,
+        prompt_router,
+        events_router,
+        page_router,
+    ):
         app.include_router(router)
     app.mount("/static", StaticFiles(directory=STATIC), name="static")
     return app

@@ -16,12 +16,15 @@ from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from api._service import ConflictError, ImportArchiveError, NotAvailableError, WorkerError
+from station.arm_route import RouteRejectedError
 from station.config import ConfigurationError
+from station.devices import DeviceError, MotionRejectedError
 from station.imageio import ImageFileError
 from station.plans import PlanError
 from station.prompts import InvalidAnswerError, PromptBusyError, PromptError, UnknownPromptError
-from station.record import RecordError, RecordNotFoundError, SessionLockError
+from station.record import ImportRefusedError, RecordError, RecordNotFoundError, SessionLockError
 from station.runner import PreflightError, SessionError
+from station.scale_calibration import NothingToRevertError, ScaleCalibrationError
 
 log = logging.getLogger(__name__)
 
@@ -31,8 +34,11 @@ PROBLEM_BASE = "https://station.invalid/problems/"
 #: Exception type -> (HTTP status, code). The first matching entry wins (most specific first).
 STATUS_OF: tuple[tuple[type[Exception], int, str], ...] = (
     (RecordNotFoundError, 404, "session_not_found"),
+    (NothingToRevertError, 409, "nothing_to_revert"),
+    (ScaleCalibrationError, 422, "scale_calibration_error"),
     (SessionLockError, 409, "station_busy"),
     (ImportArchiveError, 422, "bad_archive"),
+    (ImportRefusedError, 422, "import_refused"),
     (PreflightError, 422, "preflight_failed"),
     (ConflictError, 409, "conflict"),
     (WorkerError, 503, "worker_unavailable"),
@@ -46,6 +52,9 @@ STATUS_OF: tuple[tuple[type[Exception], int, str], ...] = (
     (PlanError, 422, "invalid_parameters"),
     (ConfigurationError, 422, "configuration_error"),
     (RecordError, 422, "record_error"),
+    (RouteRejectedError, 422, "route_rejected"),
+    (MotionRejectedError, 422, "motion_rejected"),
+    (DeviceError, 502, "device_error"),
 )
 
 TITLES = {
@@ -59,6 +68,7 @@ TITLES = {
     415: "Unsupported media type",
     422: "Unprocessable content",
     500: "Internal server error",
+    502: "Bad gateway",
     503: "Service unavailable",
 }
 
@@ -102,7 +112,7 @@ def install(app: FastAPI) -> None:
         if isinstance(exc, ImageFileError):
             return problem(status, exc.reason, "bad_image")
         extra: dict[str, Any] = {}
-        if isinstance(exc, PreflightError):
+        if isinstance(exc, PreflightError | RouteRejectedError):
             extra["problems"] = exc.problems
         return problem(status, str(exc), code, **extra)
 

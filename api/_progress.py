@@ -35,7 +35,8 @@ def planned_steps(events: Sequence[EventRow]) -> int | None:
         if e.type == "resumed":
             return int(e.data.get("skipped_steps", 0)) + int(e.data.get("remaining", 0))
         if e.type == "preflight":
-            return int(e.data.get("steps", 0))
+            # ``plan_steps`` leaves out the route to the reference pose (older records: ``steps``)
+            return int(e.data.get("plan_steps", e.data.get("steps", 0)))
     return None
 
 

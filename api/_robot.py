@@ -2,15 +2,18 @@
 start, not only once a session has connected it.
 
 The station worker owns the robot; between sessions it is closed. :class:`RobotMirror` asks the worker
-to read it (``SessionHost.rpc_robot_state``: connect, status and position, close; nothing moves) in a thread
-of its own, so that a read of ``/station`` never waits for the serial line: when the service starts,
-when a session ends, and when the latest read is older than :data:`MAX_AGE_S` while no session runs
-(someone may have jogged the arm at its pendant). While a session runs the robot is the session's: the
-mirror shows the last read, marked ``in_session``.
+to read it (``SessionHost.rpc_robot_state``: connect, status, position and the route to the reference
+pose checked, close; nothing moves) in a thread of its own, so that a read of ``/station`` never waits
+for the serial line: when the service starts, when a session ends, after ``to-reference``, and when the
+latest read is older than :data:`MAX_AGE_S` while no session runs (someone may have jogged the arm at
+its pendant). ``GET /station/robot`` is the same read made at once (:meth:`RobotMirror.read`), which the
+mirror keeps too: there is one read of the arm, not two. While a session runs the robot is the
+session's: the mirror shows the last read, marked ``in_session``.
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import threading
@@ -26,27 +29,17 @@ log = logging.getLogger(__name__)
 
 MAX_AGE_S = 10.0
 """The oldest read shown while no session runs; an older one starts a new read."""
-AT_REFERENCE_DEG = 0.01
-"""The largest difference of a commanded joint from the reference pose still counted as at it."""
+SHOWN = ("power", "homed", "joints_deg", "commanded_joints_deg", "reference_joints_deg", "at_reference")
+"""The keys of a read that ``/station`` shows (besides ``state``, ``read_at`` and ``error``)."""
 
 Reader = Callable[[], dict[str, Any] | None]
-
-
-def at_reference(commanded: list[float] | None, reference: list[float] | None) -> bool | None:
-    """Whether every commanded joint is within :data:`AT_REFERENCE_DEG` of the reference pose (None when
-    either is unknown)."""
-    if not commanded or not reference or len(commanded) != len(reference):
-        return None
-    return all(
-        math.isfinite(c) and abs(c - r) <= AT_REFERENCE_DEG for c, r in zip(commanded, reference, strict=True)
-    )
 
 
 class RobotMirror:
     """The latest read of the robot and whether one is under way.
 
-    ``read()`` is the worker's read (a dict, None without a robot, or an exception whose message says
-    what is wrong); ``clock`` is monotonic seconds.
+    ``read`` is the worker's read (``SessionHost.rpc_robot_state``'s dict, None without a robot, or an
+    exception whose message says what is wrong); ``clock`` is monotonic seconds.
     """
 
     def __init__(self, read: Reader, *, clock: Callable[[], float] = time.monotonic) -> None:
@@ -73,23 +66,33 @@ class RobotMirror:
         thread.start()
         return thread
 
-    def _read_now(self) -> None:
+    def read(self) -> dict[str, Any] | None:
+        """Read the robot now, in this thread, and keep what the read found (its error too); the read's
+        dict (None without a robot), or its exception."""
         held = False
         try:
             doc = self._read()
             error = None
         except (ConflictError, SessionLockError) as exc:  # a session (here or elsewhere) has the robot
             doc, error, held = None, str(exc), True
-        except Exception as exc:  # noqa: BLE001 - shown as the robot's error; the service goes on
+            raise
+        except Exception as exc:
             doc, error = None, str(exc) or type(exc).__name__
             log.info("reading the robot failed: %s", error)
-        with self._lock:
-            if error is None:
-                self._latest, self._absent = doc, doc is None
-            self._error, self._held = error, held
-            self._read_at = datetime.now(UTC).isoformat()
-            self._at = self._clock()
-            self.generation += 1
+            raise
+        finally:
+            with self._lock:
+                if error is None:
+                    self._latest, self._absent = doc, doc is None
+                self._error, self._held = error, held
+                self._read_at = datetime.now(UTC).isoformat()
+                self._at = self._clock()
+                self.generation += 1
+        return doc
+
+    def _read_now(self) -> None:
+        with contextlib.suppress(Exception):  # kept by read(): shown as the robot's state and error
+            self.read()
 
     def doc(self, *, busy: bool) -> dict[str, Any] | None:
         """What ``/station`` shows: None without a robot; else the latest read with ``state``
@@ -104,15 +107,7 @@ class RobotMirror:
             self.refresh()
         if absent:
             return None
-        doc: dict[str, Any] = {
-            "power": None,
-            "homed": None,
-            "joints_deg": None,
-            "commanded_joints_deg": None,
-            "reference_joints_deg": None,
-            **(latest or {}),
-        }
-        doc.pop("identity", None)
+        doc: dict[str, Any] = {key: (latest or {}).get(key) for key in SHOWN}
         in_use = busy or held
         if busy:
             state = "in_session"
@@ -126,9 +121,9 @@ class RobotMirror:
             doc.update(power=None, homed=None, joints_deg=None, commanded_joints_deg=None)
         else:
             state = "idle"
-        # while a session moves the arm, whether it is at its reference pose is not known here
-        at_ref = None if in_use else at_reference(doc["commanded_joints_deg"], doc["reference_joints_deg"])
-        doc.update(state=state, at_reference=at_ref, read_at=read_at, error=error)
+        if in_use or error is not None:
+            doc["at_reference"] = None  # while a session moves the arm (or unread), not known here
+        doc.update(state=state, read_at=read_at, error=error)
         return doc
 
     def identity(self) -> dict[str, Any] | None:

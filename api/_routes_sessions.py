@@ -23,7 +23,7 @@ from api._models import (
     rendered,
     session_model,
 )
-from api._overlay import measurement_header
+from api._overlay import measurement_headers
 from api._routes_station import read_body
 
 router = APIRouter(prefix="/api/v1/sessions")
@@ -226,6 +226,6 @@ async def export(request: Request, session_id: str) -> Response:
 )
 async def latest(request: Request, session_id: str, overlay: bool = True) -> Response:
     """The session's latest capture with its measurement drawn (the live view while it runs)."""
-    live = await run_in_threadpool(service_of(request).latest_capture, session_id, overlay=overlay)
-    headers = {"Cache-Control": "no-store", **measurement_header(live.measurement)}
-    return Response(live.png, media_type="image/png", headers=headers)
+    picture = await run_in_threadpool(service_of(request).latest_capture_png, session_id, overlay=overlay)
+    headers = {"Cache-Control": "no-store", **measurement_headers(picture.measurement)}
+    return Response(picture.png, media_type="image/png", headers=headers)

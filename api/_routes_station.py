@@ -1,4 +1,5 @@
-"""``/api/v1/health``, ``/api/v1/station``, ``/api/v1/camera/snapshot.png``, ``/api/v1/measure``."""
+"""``/api/v1/health``, ``/api/v1/station``, ``/api/v1/station/robot`` (and its ``to-reference``),
+``/api/v1/camera/snapshot.png``, ``/api/v1/measure``."""
 
 from __future__ import annotations
 
@@ -12,8 +13,9 @@ from api._auth import Access, read_access, require_token
 from api._deps import service_of
 from api._errors import ApiError
 from api._models import AccessModel, Health, StationModel, rendered
-from api._overlay import measurement_header
+from api._overlay import measurement_headers
 from station import __version__
+from station.arm_route import ArmStatus, ToReferenceResult
 from station.imageio import DEFAULT_MAX_BYTES, ImageLimits
 from station.vision import MeasureParams
 
@@ -52,10 +54,43 @@ async def station(request: Request) -> Response:
 )
 async def snapshot(request: Request, overlay: bool = False) -> Response:
     """A frame from the camera (optionally with the measurement drawn on it); 409 while a session owns
-    the camera: its latest capture is at ``/api/v1/sessions/{id}/latest.png`` then."""
-    live = await run_in_threadpool(service_of(request).snapshot, overlay=overlay)
-    headers = {"Cache-Control": "no-store", **measurement_header(live.measurement)}
-    return Response(live.png, media_type="image/png", headers=headers)
+    the camera: its latest capture is at ``/api/v1/sessions/{id}/latest.png`` then. A frame the
+    measurement refuses (no crossing in view) is still a 200 frame: with ``overlay`` the refusal is
+    written under it and sent beside it (``X-Measurement-Ok: false``, ``X-Measurement-Code``,
+    ``X-Measurement-Error``); ``X-Measurement`` carries its numbers as JSON (``ok``, ``center_px``,
+    ``center_mm``, ``code``, ``error``)."""
+    picture = await run_in_threadpool(service_of(request).snapshot_png, overlay=overlay)
+    headers = {"Cache-Control": "no-store", **measurement_headers(picture.measurement)}
+    return Response(picture.png, media_type="image/png", headers=headers)
+
+
+@router.get(
+    "/station/robot",
+    response_model=ArmStatus,
+    dependencies=[Depends(read_access)],
+    responses={409: {"description": "a session (or the arm's route) owns the arm"}},
+)
+async def robot(request: Request) -> Response:
+    """Where the arm is against its reference pose (``at_reference``) and the route ``to-reference``
+    would take from here with every problem the driver's checks find in it; nothing moves."""
+    return rendered(await run_in_threadpool(service_of(request).robot))
+
+
+@router.post(
+    "/station/robot/to-reference",
+    response_model=ToReferenceResult,
+    dependencies=[Depends(require_token)],
+    responses={
+        409: {"description": "a session runs (or the arm is already on its way)"},
+        422: {"description": "the route is refused by the driver's checks; nothing moved (``problems``)"},
+    },
+)
+async def to_reference(request: Request) -> Response:
+    """Take the arm to its reference pose from wherever it is: through the lift pose unless it is within
+    one joint step, every move within the driver's step limit and checked (limits, step, keep-out) from
+    the arm's commanded position before the first is sent; answers once it has arrived, with the
+    ``moves`` sent and the ``final_pose``."""
+    return rendered(await run_in_threadpool(service_of(request).to_reference))
 
 
 async def read_body(request: Request, max_bytes: int) -> bytes:

@@ -20,6 +20,7 @@ events the worker reported (the record is read only for what the buffer does not
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import io
 import logging
@@ -32,17 +33,20 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from api._overlay import Picture, overlay_png
 from api._progress import RecordedProgress
 from api._robot import RobotMirror
+from station.arm_route import ArmPose, ArmStatus, RoutePreview, RouteRejectedError, ToReferenceResult
 from station.batch import FileResult
 from station.config import ConfigurationError, StationConfig, load_config
 from station.imageio import ImageFileError, ImageLimits, decode_image
 from station.plans import PLAN_NAMES, PlanError
 from station.prompts import Prompt, PromptAnswer
 from station.record import (
+    ArchiveLimits,
+    ArchiveRefusedError,
     EventRow,
     Record,
-    RecordError,
     SessionLockError,
     SessionRow,
     lock_holder,
@@ -53,6 +57,7 @@ from station.runner import ACTIVE_STATES, FINAL_STATES, Progress, RunnerState, r
 from station.session import open_record, session_measure_params
 from station.vision import MeasurementError, MeasureParams, measure
 from station.worker import (
+    NO_REFERENCE,
     WORKER_NICE,
     ConflictError,
     NotAvailableError,
@@ -70,6 +75,8 @@ EVENT_BUFFER = 4096
 """The running session's latest events kept in memory for its event streams."""
 
 ACTIONS = ("pause", "resume", "stop", "abort")
+TO_REFERENCE_S = 600.0
+"""The longest the service waits for the arm's route to its reference pose (a real arm, slow speed)."""
 
 
 @dataclass
@@ -80,22 +87,13 @@ class ServiceSettings:
     manual_prompts: bool = False
     config: Path | None = None
     data: Path | None = None
-    database: str | None = None
+    database: str | None = field(default=None, repr=False)  # a URL may hold a password
     host: str = "127.0.0.1"
     port: int = 8465
     sim_options: dict[str, Any] = field(default_factory=dict)
     """Extra ``build_sim_station`` options (tests: seed, time scale)."""
     worker_nice: int = WORKER_NICE
     """The station worker's scheduling priority (``station.worker.WorkerSpec.nice``)."""
-
-
-@dataclass(frozen=True)
-class LiveImage:
-    """A picture of the live view (PNG, the measurement drawn) and that measurement (``station measure
-    --json``'s object; None when there is none)."""
-
-    png: bytes
-    measurement: dict[str, Any] | None
 
 
 @dataclass(frozen=True)
@@ -343,18 +341,12 @@ class StationService:
             result = FileResult(name, error=exc.message, code=exc.code)
         return result.to_json()
 
-    def snapshot_png(self, *, overlay: bool = False) -> bytes:
-        """One frame from the camera as PNG (optionally with the measurement drawn); ConflictError while
-        a session owns the camera."""
-        return self.snapshot(overlay=overlay).png
-
-    def snapshot(self, *, overlay: bool = False) -> LiveImage:
-        """:meth:`snapshot_png` with the measurement it drew (None without ``overlay``)."""
-        from api._overlay import overlay_png
-
+    def snapshot_png(self, *, overlay: bool = False) -> Picture:
+        """One frame from the camera as PNG (optionally with the measurement drawn, or its refusal);
+        ConflictError while a session owns the camera."""
         image = self.worker.call("grab", timeout_s=60)
         result = self._measure_array(image) if overlay else None
-        return LiveImage(overlay_png(image, result), result)
+        return Picture(overlay_png(image, result), result)
 
     def _measure_array(self, image: Any) -> dict[str, Any]:
         mp, _ = session_measure_params(self.record, "repeatability", {}, self.config, {})
@@ -363,23 +355,53 @@ class StationService:
         except MeasurementError as exc:
             return {"ok": False, "error": exc.message, "code": exc.code}
 
-    def latest_capture_png(self, session_id: str, *, overlay: bool = True) -> bytes:
+    def latest_capture_png(self, session_id: str, *, overlay: bool = True) -> Picture:
         """The session's latest stored capture with its measurement drawn (the live view in a session)."""
-        return self.latest_capture(session_id, overlay=overlay).png
-
-    def latest_capture(self, session_id: str, *, overlay: bool = True) -> LiveImage:
-        """:meth:`latest_capture_png` with the capture's recorded measurement (None before it is measured)."""
-        from api._overlay import overlay_png
-
         row = self.record.get_session(session_id)
         captures = self.record.captures(row.id)
         if not captures:
             raise ConflictError(f"session {row.id} has no capture yet")
         cap = captures[-1]
         image = self.record.load_image(cap)
-        found = [m for m in self.record.measurements(row.id) if m.capture_id == cap.id]
-        result = found[-1].result if found else None
-        return LiveImage(overlay_png(image, result if overlay else None), result)
+        result = None
+        if overlay:
+            found = [m for m in self.record.measurements(row.id) if m.capture_id == cap.id]
+            result = found[-1].result if found else None
+        return Picture(overlay_png(image, result), result)
+
+    # ------------------------------------------------------------------ the arm outside sessions
+
+    def robot(self) -> ArmStatus:
+        """Where the arm is against its reference pose, and the route there: a read now (in the worker;
+        nothing moves) that ``/station``'s ``robot`` shows too; ConflictError while a session owns the arm,
+        NotAvailableError without a robot with a reference pose."""
+        doc = self.robot_state.read()
+        if doc is None or doc.get("route") is None:
+            raise NotAvailableError(NO_REFERENCE)
+        return ArmStatus(
+            position=ArmPose.model_validate(doc),
+            reference_joints_deg=doc["reference_joints_deg"],
+            at_reference=doc["at_reference"],
+            route=RoutePreview.model_validate(doc["route"]),
+        )
+
+    def to_reference(self) -> ToReferenceResult:
+        """Take the arm to its reference pose along its route (in the worker, which owns the devices);
+        ConflictError while a session runs, RouteRejectedError (nothing moved) when a move fails the
+        driver's checks."""
+        try:
+            done = ToReferenceResult.model_validate(
+                self.worker.call("to_reference", timeout_s=TO_REFERENCE_S)
+            )
+        except (ConflictError, RouteRejectedError):
+            raise  # the arm did not move
+        except Exception:
+            self.robot_state.refresh()  # where a failure on the way left it
+            raise
+        # read before answering, so that ``/station`` shows the arm at its reference pose with the reply
+        with contextlib.suppress(Exception):  # the read's failure is the robot's state in ``/station``
+            self.robot_state.read()
+        return done
 
     # ------------------------------------------------------------------ sessions
 
@@ -551,31 +573,11 @@ class StationService:
             return buf.getvalue()
 
     def import_zip(self, data: bytes, *, max_bytes: int) -> SessionRow:
-        import tempfile
-
-        try:
-            zf = zipfile.ZipFile(io.BytesIO(data))
-        except zipfile.BadZipFile as exc:
-            raise ImportArchiveError(f"not a zip archive: {exc}") from exc
-        with zf, tempfile.TemporaryDirectory() as tmp:
-            total = 0
-            root = Path(tmp).resolve()
-            for info in zf.infolist():
-                total += info.file_size
-                target = (root / info.filename).resolve()
-                if not target.is_relative_to(root):
-                    raise ImportArchiveError(f"archive entry {info.filename!r} points outside the archive")
-                if total > max_bytes:
-                    raise ImportArchiveError(f"the archive unpacks to more than {max_bytes // 2**20} MiB")
-            zf.extractall(root)
-            folders = [p.parent for p in root.rglob("session.json")]
-            if len(folders) != 1:
-                raise ImportArchiveError(
-                    f"the archive must hold one exported session (one session.json), found {len(folders)}"
-                )
-            row = self.record.import_session(folders[0])
-            self._generation += 1
-            return row
+        """Import an uploaded zip of an export: the record's one import path (``station import`` too),
+        with the upload's caps; ImportRefusedError (HTTP 422) names what is refused."""
+        row = self.record.import_archive(io.BytesIO(data), limits=ArchiveLimits(max_total_bytes=max_bytes))
+        self._generation += 1
+        return row
 
 
 def measurement_names(values: Mapping[str, Any]) -> dict[str, Any]:
@@ -590,8 +592,8 @@ def measurement_names(values: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
-class ImportArchiveError(RecordError):
-    """An uploaded export archive cannot be imported (HTTP 422)."""
+ImportArchiveError = ArchiveRefusedError
+"""An uploaded export archive cannot be imported (HTTP 422 ``bad_archive``)."""
 
 
 __all__ = [
@@ -600,7 +602,6 @@ __all__ = [
     "ConflictError",
     "ImageFileError",
     "ImportArchiveError",
-    "LiveImage",
     "NotAvailableError",
     "ServiceSettings",
     "SessionView",

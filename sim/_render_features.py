@@ -21,6 +21,8 @@ from sim.presets import MAX_GLINTS_PER_MM, MAX_SCRATCHES_PER_MM2, NoisePreset
 
 __all__ = [
     "FEATURE_HALF_EXTENT_MM",
+    "add_blobs",
+    "artifact_rng",
     "glint_image",
     "local_scale",
     "project_points",
@@ -37,7 +39,9 @@ _STREAK_HALF_LENGTH_MM = FEATURE_HALF_EXTENT_MM * 1.5
 _STREAK_PERIODS_MM = (0.008, 0.4)  # finest and coarsest streak period, mm
 
 
-def _artifact_rng(texture_seed: int, stream: int) -> np.random.Generator:
+def artifact_rng(texture_seed: int, stream: int) -> np.random.Generator:
+    """The artifact's generator for one kind of feature (``stream``: 1 streaks, 2 glints, 3 scratches,
+    4 flecks, 5 specks), so that each kind's catalogue is independent of the others'."""
     return np.random.default_rng([int(texture_seed), 0x5EED, stream])
 
 
@@ -47,7 +51,7 @@ def _artifact_rng(texture_seed: int, stream: int) -> np.random.Generator:
 @lru_cache(maxsize=8)
 def _streak_spectrum(texture_seed: int) -> tuple[float, npt.NDArray[np.complex128], FloatArray]:
     """Angle of the streaks (rad, artifact frame), rfft of the unit-RMS profile, frequencies (1/mm)."""
-    rng = _artifact_rng(texture_seed, 1)
+    rng = artifact_rng(texture_seed, 1)
     angle = float(rng.uniform(0.0, np.pi))
     n = round(2 * _STREAK_HALF_LENGTH_MM / _STREAK_STEP_MM) + 1
     spectrum = np.fft.rfft(rng.standard_normal(n))
@@ -102,7 +106,9 @@ def streak_texture(
     idx = num / den
     idx += np.float32(_STREAK_HALF_LENGTH_MM)
     idx *= np.float32(1.0 / _STREAK_STEP_MM)
-    np.clip(idx, 0.0, profile.size - 1.001, out=idx)
+    # below the last sample, in float32 (where size - 1.001 rounds up to size - 1 past 16384 samples):
+    # a point beyond the profile's half length takes its end value instead of indexing past it
+    np.clip(idx, 0.0, np.nextafter(np.float32(profile.size - 1), np.float32(0.0)), out=idx)
     i0 = idx.astype(np.intp)
     frac = idx - i0
     p32 = profile.astype(np.float32)
@@ -124,9 +130,9 @@ class _Catalogue:
 @lru_cache(maxsize=8)
 def _catalogue(texture_seed: int) -> _Catalogue:
     n = int(np.ceil(MAX_GLINTS_PER_MM * 2 * FEATURE_HALF_EXTENT_MM))
-    glints = _artifact_rng(texture_seed, 2).random((2, n, 4))
+    glints = artifact_rng(texture_seed, 2).random((2, n, 4))
     m = int(np.ceil(MAX_SCRATCHES_PER_MM2 * (2 * FEATURE_HALF_EXTENT_MM) ** 2))
-    raw = _artifact_rng(texture_seed, 3).random((m, 6))
+    raw = artifact_rng(texture_seed, 3).random((m, 6))
     scratches = raw.copy()
     scratches[:, :2] = (2.0 * raw[:, :2] - 1.0) * FEATURE_HALF_EXTENT_MM
     scratches[:, 2] = raw[:, 2] * np.pi
@@ -201,14 +207,21 @@ def glint_image(
     # Blur and pixel box (variance 1/12 per axis) widen the blob and keep its integral.
     sigma_e = np.sqrt(sigma_g**2 + preset.blur_sigma_px**2 + 1.0 / 12.0)
     amp = peak_dn * (sigma_g / sigma_e) ** 2
-    for (cx, cy), se, a in zip(xy, sigma_e, amp, strict=True):
+    add_blobs(out, xy, sigma_e, amp)
+    return out
+
+
+def add_blobs(out: Float32Array, xy: FloatArray, sigma_px: FloatArray, amplitude: FloatArray) -> None:
+    """Add Gaussian blobs to ``out`` in place: centres ``xy`` (n, 2) px, radii and peaks (n,), each
+    drawn within 4.5 radii of its centre (blobs wholly outside the frame cost nothing)."""
+    shape = (out.shape[0], out.shape[1])
+    for (cx, cy), se, a in zip(xy, sigma_px, amplitude, strict=True):
         win = _window(np.array([cx, cy]), 4.5 * se, shape)
         if win is None:
             continue
         ys = np.arange(win[0].start, win[0].stop, dtype=np.float64)[:, None] - cy
         xs = np.arange(win[1].start, win[1].stop, dtype=np.float64)[None, :] - cx
         out[win] += (a * np.exp(-(xs * xs + ys * ys) / (2.0 * se * se))).astype(np.float32)
-    return out
 
 
 def scratch_image(

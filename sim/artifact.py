@@ -52,6 +52,7 @@ from sim._render_features import (
     vignetting_map,
 )
 from sim._render_geometry import FloatArray, land_fraction
+from sim._render_specks import fleck_image, speck_image
 from sim.presets import NoisePreset, get_preset
 
 __all__ = [
@@ -249,7 +250,7 @@ def render(
     pose : Pose
         Pose of the artifact.
     preset : NoisePreset or str
-        Noise preset or its name (``"nominal"``, ``"hard"``).
+        Noise preset or its name (``"nominal"``, ``"hard"``, ``"hard-specks"``).
     artifact, camera : ArtifactSpec, CameraSpec
         The artifact (width, corner radius, texture seed) and camera.
     rng : numpy.random.Generator
@@ -264,9 +265,10 @@ def render(
 
     Notes
     -----
-    Grey level before noise: ``paint + glints + L (land + texture - scratches - paint - glints)``
-    with ``L`` the exact land coverage (``render_ideal``), times the vignetting. Noise is Gaussian
-    with variance ``read^2 + gain * signal``; then rounding, clipping to 0-255, salt and pepper.
+    Grey level before noise: ``paint + glints + flecks + L (land + texture - scratches - paint - glints
+    - flecks) + specks`` with ``L`` the exact land coverage (``render_ideal``), times the vignetting.
+    Noise is Gaussian with variance ``read^2 + gain * signal``; then rounding, clipping to 0-255, salt
+    and pepper.
     """
     p = get_preset(preset) if isinstance(preset, str) else preset
     truth = truth_for(pose, artifact=artifact, camera=camera)
@@ -287,7 +289,14 @@ def render(
     paint_dn = np.float32(p.paint_level_dn) + glint_image(
         h, shape, texture_seed=artifact.texture_seed, groove_width_mm=artifact.groove_width_mm, preset=p
     )
-    clean = (paint_dn + land * (land_dn - paint_dn)) * vignetting_map(shape, p.vignetting)
+    if p.flecks_per_mm > 0:
+        paint_dn += fleck_image(
+            h, shape, texture_seed=artifact.texture_seed, groove_width_mm=artifact.groove_width_mm, preset=p
+        )
+    scene = paint_dn + land * (land_dn - paint_dn)
+    if p.specks_per_mm2 > 0:
+        scene += speck_image(h, shape, texture_seed=artifact.texture_seed, preset=p)
+    clean = scene * vignetting_map(shape, p.vignetting)
     variance = np.float32(p.read_noise_dn**2) + np.float32(p.shot_noise_gain_dn_per_e) * np.maximum(clean, 0)
     noisy = clean + np.sqrt(variance) * rng.standard_normal(shape, dtype=np.float32)
     image = np.clip(np.rint(noisy), 0, 255).astype(np.uint8)

@@ -24,6 +24,7 @@ from sim.imageset import (
     render_validation_set,
 )
 from sim.presets import PRESETS, get_preset
+from sim.ruler_cli import render_ruler_set
 
 __all__ = ["register"]
 
@@ -42,6 +43,12 @@ def register(sim_sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> No
         "out_dir", metavar="OUT_DIR", type=Path, help="folder to write (must be empty unless --force)"
     )
     p.add_argument("--pattern", choices=("validation", "random"), default="validation")
+    p.add_argument(
+        "--artifact",
+        choices=("cross", "ruler"),
+        default="cross",
+        help="the crossed-groove artifact or the ruler",
+    )
     p.add_argument(
         "--preset", choices=sorted(PRESETS), default="nominal", help="noise preset (default nominal)"
     )
@@ -89,6 +96,8 @@ def _artifact(width_mm: float | None) -> ArtifactSpec:
 
 
 def _render_set(args: argparse.Namespace) -> int:
+    if args.artifact == "ruler":
+        return render_ruler_set(args)
     start = time.perf_counter()
     try:
         artifact = _artifact(args.true_width_mm)

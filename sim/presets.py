@@ -5,17 +5,29 @@ optical blur, grey levels, noise, glints, scratches, texture and vignetting. Ben
 by name and version, so any change of a value must bump ``version``.
 
 ``nominal`` is the seed's camera (Pulnix TM-200, SNR >= 50 dB) on a clean artifact; ``hard`` is a
-worn artifact under poor optics and light. ``PRESETS`` holds both; ``get_preset`` looks one up.
+worn artifact under poor optics and light; ``hard-specks`` is ``hard`` with chips in the grooves' paint
+(bare metal, each with a glint) and bright dust specks all over the artifact, the frames on which a
+cross check that reads a groove's end from a local dip in its contrast refuses whole crosses. The
+benchmarks use ``nominal`` and ``hard``, whose frames the flecks and specks leave unchanged (their
+densities are 0 there). ``PRESETS`` holds them; ``get_preset`` looks one up.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, fields
+from dataclasses import MISSING, asdict, dataclass, fields, replace
 from typing import Any
 
-__all__ = ["MAX_GLINTS_PER_MM", "MAX_SCRATCHES_PER_MM2", "PRESETS", "NoisePreset", "get_preset"]
+__all__ = [
+    "MAX_FLECKS_PER_MM",
+    "MAX_GLINTS_PER_MM",
+    "MAX_SCRATCHES_PER_MM2",
+    "MAX_SPECKS_PER_MM2",
+    "PRESETS",
+    "NoisePreset",
+    "get_preset",
+]
 
 FULL_SCALE_DN = 255.0
 """Largest 8-bit grey level, the signal of the SNR figure (video peak, as camera data sheets quote it)."""
@@ -25,6 +37,12 @@ MAX_GLINTS_PER_MM = 10.0
 
 MAX_SCRATCHES_PER_MM2 = 1.0
 """Largest scratch density a preset may ask for (the artifact's scratch catalogue is drawn at this)."""
+
+MAX_FLECKS_PER_MM = 10.0
+"""Largest density of chips in the paint a preset may ask for (the catalogue is drawn at this)."""
+
+MAX_SPECKS_PER_MM2 = 10.0
+"""Largest density of dust specks a preset may ask for (the catalogue is drawn at this)."""
 
 
 @dataclass(frozen=True)
@@ -70,6 +88,28 @@ class NoisePreset:
         RMS of the machining streaks on the lands before optical blur and pixel integration, DN.
     vignetting : float
         Fractional fall-off of brightness at the image corners (radial, quadratic, fixed to the camera).
+    flecks_per_mm : float
+        Chips in the grooves' paint (flecks of bare metal showing through) per mm of groove length
+        (each groove), at most ``MAX_FLECKS_PER_MM``; anywhere across the groove, walls included.
+        Default 0: a preset written before flecks existed has none.
+    fleck_cluster_mm : float
+        Chips come in clusters of six (a damaged spot of the paint) spread over this length along the
+        groove, mm.
+    fleck_sigma_min_mm, fleck_sigma_max_mm : float
+        Range of the Gaussian radius of a chip on the artifact, mm.
+    fleck_peak_min_dn, fleck_peak_max_dn : float
+        Range of a chip's peak brightness above the paint before blur, DN.
+    fleck_glint_peak_dn : float
+        Largest peak of the specular glint on each chip (radius a third of the chip's), DN above the
+        paint before blur; each chip's is drawn between half of it and all of it.
+    specks_per_mm2 : float
+        Bright dust specks lying on the artifact (lands and grooves alike) per mm^2, at most
+        ``MAX_SPECKS_PER_MM2``. Default 0.
+    speck_sigma_min_mm, speck_sigma_max_mm : float
+        Range of the Gaussian radius of a speck, mm.
+    speck_peak_min_dn, speck_peak_max_dn : float
+        Range of a speck's peak brightness before blur, DN added to whatever lies under it (specular:
+        may be well above full scale, the pixel saturates).
     """
 
     name: str
@@ -92,6 +132,18 @@ class NoisePreset:
     scratch_length_max_mm: float
     texture_rms_dn: float
     vignetting: float
+    flecks_per_mm: float = 0.0
+    fleck_cluster_mm: float = 0.0
+    fleck_sigma_min_mm: float = 0.0
+    fleck_sigma_max_mm: float = 0.0
+    fleck_peak_min_dn: float = 0.0
+    fleck_peak_max_dn: float = 0.0
+    fleck_glint_peak_dn: float = 0.0
+    specks_per_mm2: float = 0.0
+    speck_sigma_min_mm: float = 0.0
+    speck_sigma_max_mm: float = 0.0
+    speck_peak_min_dn: float = 0.0
+    speck_peak_max_dn: float = 0.0
 
     def __post_init__(self) -> None:
         def need(ok: bool, what: str) -> None:
@@ -113,6 +165,12 @@ class NoisePreset:
         need(self.glint_sigma_min_mm <= self.glint_sigma_max_mm, "glint sigma range is reversed")
         need(self.glint_peak_min_dn <= self.glint_peak_max_dn, "glint peak range is reversed")
         need(self.vignetting < 1.0, "vignetting must be below 1 (fraction of brightness lost at corners)")
+        need(self.flecks_per_mm <= MAX_FLECKS_PER_MM, f"flecks_per_mm must be <= {MAX_FLECKS_PER_MM}")
+        need(self.specks_per_mm2 <= MAX_SPECKS_PER_MM2, f"specks_per_mm2 must be <= {MAX_SPECKS_PER_MM2}")
+        need(self.fleck_sigma_min_mm <= self.fleck_sigma_max_mm, "fleck sigma range is reversed")
+        need(self.fleck_peak_min_dn <= self.fleck_peak_max_dn, "fleck peak range is reversed")
+        need(self.speck_sigma_min_mm <= self.speck_sigma_max_mm, "speck sigma range is reversed")
+        need(self.speck_peak_min_dn <= self.speck_peak_max_dn, "speck peak range is reversed")
 
     @property
     def contrast_dn(self) -> float:
@@ -133,9 +191,12 @@ class NoisePreset:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> NoisePreset:
-        """Inverse of ``to_dict``; raises ValueError naming missing or unknown keys."""
+        """Inverse of ``to_dict``; raises ValueError naming missing or unknown keys. A key with a
+        default (a feature added later, such as the flecks) may be missing: a set written before it
+        existed had none of it."""
         names = {f.name for f in fields(cls)}
-        missing, unknown = names - set(data), set(data) - names
+        required = {f.name for f in fields(cls) if f.default is MISSING}
+        missing, unknown = required - set(data), set(data) - names
         if missing or unknown:
             raise ValueError(f"noise preset: missing keys {sorted(missing)}, unknown keys {sorted(unknown)}")
         return cls(**dict(data))
@@ -187,7 +248,25 @@ HARD = NoisePreset(
     vignetting=0.3,
 )
 
-PRESETS: dict[str, NoisePreset] = {p.name: p for p in (NOMINAL, HARD)}
+HARD_SPECKS = replace(
+    HARD,
+    name="hard-specks",
+    version=1,
+    flecks_per_mm=6.0,  # a damaged spot per mm of groove: most frames' borders cut an arm near one
+    fleck_cluster_mm=0.3,
+    fleck_sigma_min_mm=0.01,
+    fleck_sigma_max_mm=0.03,
+    fleck_peak_min_dn=80.0,  # bare metal under paint residue: a chip is nearly as bright as a land
+    fleck_peak_max_dn=160.0,
+    fleck_glint_peak_dn=600.0,  # a chip's broken edge catches the light: its glint saturates
+    specks_per_mm2=1.5,
+    speck_sigma_min_mm=0.005,
+    speck_sigma_max_mm=0.015,
+    speck_peak_min_dn=300.0,  # specular: the larger ones saturate
+    speck_peak_max_dn=1200.0,
+)
+
+PRESETS: dict[str, NoisePreset] = {p.name: p for p in (NOMINAL, HARD, HARD_SPECKS)}
 """The named presets, by name."""
 
 

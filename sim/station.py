@@ -81,7 +81,8 @@ class SimStation:
         self.distance_twin: DistanceSensorTwin | None = None
         if sensor_mount is not None:
             source = world_source(self.world, sensor_mount.matrix())
-            self.distance_twin = DistanceSensorTwin(source, HeadModel(), seed=seed).start()
+            head = HeadModel(plane_half_size_mm=world_spec.artifact_half_size_mm)  # one plate for both twins
+            self.distance_twin = DistanceSensorTwin(source, head, seed=seed).start()
 
     @property
     def port(self) -> str:

@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from sim._render_features import vignetting_map
 from sim.arm_errors import FlangeErrors, FlangeErrorSequence
 from sim.artifact import ArtifactSpec, CameraSpec, Pose, Truth, homography_for, render
 from sim.kinematic_errors import perturbed_dh
@@ -96,6 +97,12 @@ class WorldSpec:
     true_dh: tuple[DHRow, ...] | None = None
     """The arm's true DH table; None: the nominal table plus errors drawn with ``dh_error_seed``."""
     dh_error_seed: int = 0
+    artifact_half_size_mm: float = 50.0
+    """Half the side of each artifact's top plate (its grooves run across it): the camera sees the
+    background beyond it, and the distance sensor twin's beam misses it there (the sensor, 30 mm beside
+    the optical axis, reads the plate while the camera looks at the crossing)."""
+    background_dn: float = 60.0
+    """Grey level of what lies around the artifacts (bench, table top; far out of focus), DN."""
 
 
 class TableAxis:
@@ -358,7 +365,7 @@ class World:
     def last_frame_center_mm(self, *, tool_point: bool = False) -> tuple[float, float] | None:
         """The true position (see :meth:`center_mm_at`) in the last frame rendered: a capture's truth.
 
-        None before the first frame.
+        None before the first frame, and when the last frame saw no artifact.
         """
         with self._lock:
             H = self._last_frame_homography
@@ -379,9 +386,22 @@ class World:
 
     def render(
         self, rng: np.random.Generator, *, exposure: float = 1.0
-    ) -> tuple[npt.NDArray[np.uint8], Truth]:
-        """What the camera sees now, with the truth of that frame."""
-        pose = self.pose()
+    ) -> tuple[npt.NDArray[np.uint8], Truth | None]:
+        """What the camera sees now, with the truth of that frame: a frame at every pose, as a camera gives.
+
+        The artifact nearest the optical axis where its plate is in view (what lies beyond the plate
+        replaced by the background); the background alone, with truth ``None``, where no plate is in view
+        or the one seen faces away from the camera or at a grazing angle (tilted 45 deg or more, beyond
+        the renderer's model; its image would be out of focus over most of the field anyway).
+        """
+        cam = self.camera_pose()
+        seen = np.linalg.inv(cam) @ self.artifact_poses()[self.seen_artifact(cam)]
+        view = self._view(seen)
+        if view is None:
+            with self._lock:
+                self._last_frame_homography = None
+            return self._background(rng, exposure), None
+        pose, outside = view
         image, truth = render(
             pose,
             preset=self.preset_for(pose, exposure=exposure),
@@ -389,6 +409,50 @@ class World:
             camera=self.spec.camera,
             rng=rng,
         )
+        if outside is not None:
+            image = np.where(outside, self._background(rng, exposure), image)
         with self._lock:
             self._last_frame_homography = np.array(truth.homography)
         return image, truth
+
+    def _view(self, artifact_in_camera: FloatArray) -> tuple[Pose, npt.NDArray[np.bool_] | None] | None:
+        """The renderer's pose of an artifact (4x4 in the camera frame) and the pixels outside its plate
+        (``None``: the whole frame is on it), or ``None`` when no part of its plate is in view."""
+        T = artifact_in_camera
+        a, b, _ = euler_xyz(T[:3, :3])
+        if abs(a) >= 45.0 or abs(b) >= 45.0 or T[2, 3] <= 1.0:  # grazing, facing away, or at the lens
+            return None
+        pose = self.pose(T)
+        cam = self.spec.camera
+        corners = np.array([[0, 0], [cam.width - 1, 0], [0, cam.height - 1], [cam.width - 1, cam.height - 1]])
+        H_inv = np.asarray(np.linalg.inv(homography_for(pose, cam)), dtype=np.float64)
+        half = self.spec.artifact_half_size_mm
+        seen = _on_artifact(H_inv, corners.astype(np.float64))
+        if np.all(np.abs(seen) <= half):
+            return pose, None  # the footprint of the frame is convex: all of it is on the plate
+        if np.any(np.all(seen > half, axis=0)) or np.any(np.all(seen < -half, axis=0)):
+            return None  # the whole footprint beyond one side of the plate
+        ys, xs = np.mgrid[0 : cam.height, 0 : cam.width]
+        uv = _on_artifact(H_inv, np.column_stack([xs.ravel(), ys.ravel()]).astype(np.float64))
+        outside = np.any(np.abs(uv) > half, axis=1).reshape(cam.height, cam.width)
+        return None if bool(np.all(outside)) else (pose, outside)
+
+    def _background(self, rng: np.random.Generator, exposure: float) -> npt.NDArray[np.uint8]:
+        """A frame of the background: a uniform level under the preset's vignetting and noise."""
+        p = self._preset
+        shape = self.spec.camera.shape
+        level = np.float32(min(self.spec.background_dn * exposure, 255.0))
+        clean = level * vignetting_map(shape, p.vignetting)
+        variance = np.float32(p.read_noise_dn**2) + np.float32(p.shot_noise_gain_dn_per_e) * clean
+        noisy = clean + np.sqrt(variance) * rng.standard_normal(shape, dtype=np.float32)
+        return np.clip(np.rint(noisy), 0, 255).astype(np.uint8)
+
+
+def _on_artifact(H_inv: FloatArray, px: FloatArray) -> FloatArray:
+    """Artifact-plane points (mm, N x 2) seen at pixels ``px`` (N x 2) through an image -> artifact
+    homography; a pixel whose ray misses the plane (behind the camera) maps to infinity."""
+    h = np.column_stack([px, np.ones(len(px))]) @ H_inv.T
+    w = h[:, 2:3]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        uv = np.where(w > 0, h[:, :2] / np.where(w > 0, w, 1.0), np.inf)
+    return np.asarray(uv, dtype=np.float64)

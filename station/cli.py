@@ -18,7 +18,7 @@ from collections.abc import Callable, Sequence
 from importlib.metadata import entry_points
 
 from station import __version__
-from station.commands import CORE_COMMANDS
+from station.commands import CORE_COMMANDS, registers
 from station.runtime import tune_allocator
 
 log = logging.getLogger(__name__)
@@ -27,7 +27,9 @@ CLI_GROUP = "station.cli"
 Handler = Callable[[argparse.Namespace], int]
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The whole command line; with ``command`` (a core sub-command), only that sub-command's parser:
+    ``station measure`` then imports what measuring needs, not every sub-command and plug-in."""
     parser = argparse.ArgumentParser(
         prog="station",
         description="Robot calibration station: measure crossed-groove artifact images, run sessions.",
@@ -35,8 +37,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"station {__version__}")
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output on stderr")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for register_core in CORE_COMMANDS:
+    core = command if command in CORE_COMMANDS else None
+    for register_core in registers([core] if core else None):
         register_core(sub)
+    if core:
+        return parser
     for ep in sorted(entry_points(group=CLI_GROUP), key=lambda e: e.name):
         try:
             register = ep.load()
@@ -47,6 +52,11 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _command(argv: Sequence[str]) -> str | None:
+    """The sub-command named by ``argv`` (its first word that is not an option), if any."""
+    return next((a for a in argv if not a.startswith("-")), None)
+
+
 def _configure_logging(verbosity: int) -> None:
     level = logging.WARNING - 10 * min(verbosity, 2)
     logging.basicConfig(level=level, stream=sys.stderr, format="%(levelname)s %(name)s: %(message)s")
@@ -54,8 +64,9 @@ def _configure_logging(verbosity: int) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     tune_allocator()
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    words = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(_command(words))
+    args = parser.parse_args(words)
     _configure_logging(args.verbose)
     handler: Handler = args.func
     try:

@@ -11,7 +11,7 @@ import inspect
 import logging
 import math
 import tomllib
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from importlib.metadata import entry_points
 from pathlib import Path
@@ -22,8 +22,10 @@ import numpy.typing as npt
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from station._pydantic import problems as describe
+from station.compute import CLUSTER_HELP, ComputeSpec, parse_cluster
 from station.devices import Camera, DistanceSensor, Robot, XYTable
 from station.prompts import PromptBroker
+from station.redaction import redact
 
 log = logging.getLogger(__name__)
 
@@ -181,6 +183,37 @@ class ApiConfig(BaseModel):
     open_reads: bool = Field(True, description="GET endpoints without a token while bound to loopback")
 
 
+class ComputeConfig(BaseModel):
+    """Where offline sessions measure (``[compute]``; ``station.compute``)::
+
+        [compute]
+        cluster = "tcp://10.0.0.5:8786"   # a Dask scheduler; "local" (default) or "local:4"
+        ship_images = false               # true: send the frames' bytes (workers without the share)
+
+    ``station run --cluster`` overrides it for one session; the service uses it for every re-analysis
+    and sweep started from the API or the page.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    cluster: str = Field("local", description=CLUSTER_HELP)
+    ship_images: bool = Field(False, description="send the frames' bytes to the workers")
+
+    @field_validator("cluster")
+    @classmethod
+    def _known_cluster(cls, v: str) -> str:
+        return parse_cluster(v)
+
+    @model_validator(mode="after")
+    def _ship_needs_cluster(self) -> ComputeConfig:
+        self.spec()  # ValueError for ship_images without a cluster
+        return self
+
+    def spec(self, jobs: int = 1) -> ComputeSpec:
+        """The backend this section names (the local pool with ``jobs`` processes)."""
+        return ComputeSpec(self.cluster, jobs, self.ship_images)
+
+
 class CalibrationConfig(BaseModel):
     """What the calibration plan must know of the cell (``[calibration]``)::
 
@@ -272,6 +305,9 @@ class StationConfig(BaseModel):
         [measure]
         mode = "precise"
 
+        [compute]
+        cluster = "tcp://10.0.0.5:8786"
+
     Relative paths are taken from the file's folder.
     """
 
@@ -287,30 +323,14 @@ class StationConfig(BaseModel):
     measure: dict[str, Any] = Field(default_factory=dict, description="measurement parameters (--set)")
     scale_calibration: Path | None = Field(None, description="a scale calibration JSON file")
     api: ApiConfig = Field(default_factory=ApiConfig, description="the service's access control")
+    compute: ComputeConfig = Field(
+        default_factory=ComputeConfig, description="where offline sessions measure"
+    )
     calibration: CalibrationConfig | None = Field(None, description="the kinematic calibration's cell")
 
     def snapshot(self) -> dict[str, Any]:
         """JSON-ready copy for the record, with anything that looks like a secret redacted."""
         return redact(self.model_dump(mode="json"))
-
-
-SECRET_WORDS = ("password", "secret", "token", "key")
-
-
-def redact(value: Any) -> Any:
-    """A copy of ``value`` with every mapping entry whose name suggests a secret replaced by ``***``."""
-    if isinstance(value, Mapping):
-        return {
-            k: ("***" if any(w in str(k).lower() for w in SECRET_WORDS) else redact(v))
-            for k, v in value.items()
-        }
-    if isinstance(value, list | tuple):
-        return [redact(v) for v in value]
-    if isinstance(value, str) and "://" in value and "@" in value:
-        scheme, rest = value.split("://", 1)
-        creds, host = rest.rsplit("@", 1)
-        return f"{scheme}://{creds.split(':', 1)[0]}:***@{host}" if ":" in creds else value
-    return value
 
 
 def load_config(path: str | Path) -> StationConfig:

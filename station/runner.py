@@ -9,14 +9,22 @@ States (``RunnerState``)::
             any active state -> failed | succeeded
     a session whose process died shows ``interrupted`` (found when the next runner takes the lock)
 
+* Every session (and every resume) starts at its plan's reference pose: when the arm is elsewhere, its
+  first step is the arm's route there from where it is commanded (``station.arm_route``), checked in
+  pre-flight with everything else; a plan that never moves the arm (validation) is refused instead.
 * **Pause** takes effect at the next safe point (between steps); **resume** continues.
-* **Stop** finishes the step in progress, returns the arm to the reference pose, closes the devices.
+* **Stop** finishes the step in progress, returns the arm to the reference pose (along the same route),
+  closes the devices.
 * **Abort** stops the robot now through its latched stop, cancels the open operator prompt, and moves
   nothing more; the latch stays set on the driver.
 * A device error fails the session: the robot is stopped, its position read again and recorded, and
   everything captured until then stays in the record.
 * One session at a time per station (data directory), across processes: a ``station_lock`` that a dead
-  owner's lock does not block. After a crash, ``resume`` continues after the last completed step.
+  owner's lock does not block. After a crash, ``resume`` continues after the last completed step, or
+  from where the plan's resume rule says (``resume_from``: repeatability reruns the interrupted test).
+* Gates: a result that fails one of its ``fail`` checks (``results.checks``) ends the session ``failed``
+  with their messages, its results kept; a plan's ``check_progress`` stops it at once. A validation that
+  succeeded writes the station's scale calibration before its state says so.
 
 Every capture is stored (lossless, fsynced) before it is measured, and measured from the stored file, so
 re-analysis of the record reproduces the live results bit for bit. Events (state changes, steps, images,
@@ -42,8 +50,10 @@ from typing import Any
 
 from pydantic import BaseModel
 
-from station import __version__
+from station import __version__, scale_calibration
+from station.arm_route import TO_REFERENCE_HINT, describe_offset, go_to_reference, max_step_of, plan_route
 from station.batch import measure_file
+from station.compute import ComputeError, MeasureBackend
 from station.config import StationDevices
 from station.devices import (
     DeviceError,
@@ -74,6 +84,7 @@ from station.plans import (
     Settle,
     Step,
 )
+from station.plans._gates import verdict
 from station.prompts import PromptError, PromptEvent
 from station.record import EventRow, Record, RecordError, SessionRow, station_lock
 from station.vision import MeasurementError, MeasureParams, measure
@@ -200,6 +211,10 @@ class SessionRunner:
     resume_session
         An interrupted (or stopped, failed, aborted) session to continue; ``plan`` and ``params`` must
         be its own.
+    jobs, compute
+        Where offline plans measure: ``compute`` (a backend of ``station.compute``, owned by the
+        caller, which closes it), else a local pool of ``jobs`` processes. A backend's failure (its
+        cluster gone) fails the session, which can then be resumed.
     """
 
     def __init__(
@@ -213,6 +228,7 @@ class SessionRunner:
         scale_calibration: dict[str, Any] | None = None,
         resume_session: SessionRow | None = None,
         jobs: int = 1,
+        compute: MeasureBackend | None = None,
         station: str = "default",
         config_snapshot: dict[str, Any] | None = None,
     ) -> None:
@@ -226,6 +242,7 @@ class SessionRunner:
         self.measure_params = measure_params or MeasureParams()
         self.scale_calibration = scale_calibration
         self.jobs = jobs
+        self.compute = compute
         self._station = station
         self._config_snapshot = config_snapshot
         self._resume = resume_session
@@ -250,6 +267,7 @@ class SessionRunner:
         self._offset_base: tuple[float, ...] | None = None  # where a step's MoveOffset offsets start
         self._frame_base = 0  # the current step attempt's first frame index
         self._frames_in_step = 0
+        self._run = 0  # how many times this session was resumed: captures of a resumed run carry it
         self.error: str | None = None
         self.results: dict[str, Any] | None = None
 
@@ -393,7 +411,7 @@ class SessionRunner:
         """Run the session to its end; returns the final state. Raises ``SessionLockError`` when another
         session holds the station (nothing is created or moved then)."""
         data_dir = Path(self.record.data_dir)
-        with station_lock(data_dir, self._session_id or "new"):
+        with station_lock(data_dir, self._session_id or "new") as held:
             reconcile(self.record)
             session = self.create()
             sid = session.id
@@ -402,9 +420,17 @@ class SessionRunner:
                 unsubscribe = self.devices.broker.subscribe(self._on_prompt)
             try:
                 final = self._run_session(sid)
+            except BaseException:  # Ctrl-C, SystemExit, an error before it ran: recorded (the arm stopped)
+                held.release()
+                self._finish(sid, RunnerState.ABORTED if self._abort else RunnerState.FAILED)
+                raise
             finally:
                 if unsubscribe is not None:
                     unsubscribe()
+            # the station is free before anyone can see the outcome: whoever sees it may start the next
+            # session at once (that one waits for this final state to be recorded before it reconciles)
+            held.release()
+            self._finish(sid, final)
             return final
 
     def _run_session(self, sid: str) -> RunnerState:
@@ -412,8 +438,6 @@ class SessionRunner:
         final = RunnerState.FAILED
         with self._lock:
             if self._abort:
-                self._set_state(RunnerState.ABORTED)
-                self.record.set_state(sid, RunnerState.ABORTED, error=self.error)
                 return RunnerState.ABORTED
             self._set_state(RunnerState.STOPPING if self._stop else RunnerState.RUNNING)
         try:
@@ -423,10 +447,12 @@ class SessionRunner:
                 try:
                     steps, prelude = self._steps(ctx)
                     self._connect(stack)
-                    self._preflight(prelude + steps)
-                    for step in prelude + steps:
+                    route, problems = self._route(ctx, prelude)
+                    self._preflight(route + prelude + steps, problems)
+                    for step in route + prelude + steps:
                         self._safe_point()
                         self._run_step(sid, step, ctx)
+                        self._check_progress(sid, ctx)
                     self._drain()
                     self._check_store()
                     final = RunnerState.SUCCEEDED
@@ -440,6 +466,12 @@ class SessionRunner:
             self._analyse(sid, ctx, keep_going=final is not RunnerState.SUCCEEDED)
             if final is RunnerState.SUCCEEDED and self.results is None:
                 final = RunnerState.FAILED
+            gates = verdict(self.results)
+            if final is RunnerState.SUCCEEDED and gates is not None:
+                # a result that fails a gate is kept and shown, marked failed: never a success
+                final = RunnerState.FAILED
+                self.error = gates
+                self._event("error", {"message": gates, "type": "GateError"})
         except (_AbortRequestedError, MotionStoppedError, OperatorCancelledError) as exc:
             if self._abort:
                 final = RunnerState.ABORTED
@@ -449,15 +481,13 @@ class SessionRunner:
                 final = RunnerState.FAILED
                 self._fail(exc)
                 self._analyse(sid, ctx, keep_going=True)
-        except (DeviceError, RecordError, PlanError, SessionError, OSError, ValueError) as exc:
+        except (DeviceError, RecordError, PlanError, SessionError, ComputeError, OSError, ValueError) as exc:
             final = RunnerState.ABORTED if self._abort else RunnerState.FAILED
             self._fail(exc)
             self._analyse(sid, ctx, keep_going=True)
-        except BaseException as exc:  # KeyboardInterrupt, SystemExit: stop the arm, record, re-raise
+        except BaseException as exc:  # KeyboardInterrupt, SystemExit: stop the arm; run() records it
             self._fail(exc)
-            self._finish(sid, RunnerState.ABORTED if self._abort else RunnerState.FAILED)
             raise
-        self._finish(sid, final)
         return final
 
     def _close_store(self) -> None:
@@ -473,10 +503,25 @@ class SessionRunner:
     def _finish(self, sid: str, final: RunnerState) -> None:
         if self.results is not None:
             self.record.set_results(sid, self.results)
+        if final is RunnerState.SUCCEEDED:
+            self._write_scale_calibration()  # before the state says succeeded: a client then finds it
         with self._lock:
             self._set_state(final)
         self.record.set_state(sid, final, error=None if final is RunnerState.SUCCEEDED else self.error)
         log.info("session %s %s", sid, final)
+
+    def _write_scale_calibration(self) -> None:
+        """A validation that passed every gate: its groove-width estimate becomes the station's scale
+        calibration (the one it replaces stays in the history, ``station.scale_calibration``)."""
+        cal = scale_calibration.from_validation(self.plan.name, RunnerState.SUCCEEDED, self.results)
+        if cal is None:
+            return
+        try:
+            entry = scale_calibration.write(self.record.data_dir, cal)
+        except (scale_calibration.ScaleCalibrationError, OSError) as exc:
+            self._event("warning", {"message": f"the scale calibration could not be written: {exc}"})
+            return
+        self._event("scale_calibration", {"version": entry.version, **cal.record()})
 
     def _fail(self, exc: BaseException) -> None:
         message = str(exc) or type(exc).__name__
@@ -531,6 +576,8 @@ class SessionRunner:
             session_id=sid,
             jobs=self.jobs,
             calibration=calibration_cell(devices, self.measure_params),
+            compute=self.compute,
+            cancelled=lambda: self._abort,
         )
 
     def _steps(self, ctx: PlanContext) -> tuple[list[Step], list[Step]]:
@@ -539,14 +586,18 @@ class SessionRunner:
         prelude: list[Step] = []
         assert ctx.session_id is not None
         if self._resume is not None:
-            done = {s.index for s in self.record.steps(ctx.session_id) if s.state == "done"}
+            rows = self.record.steps(ctx.session_id)
+            self._run = 1 + max((int(r.data.get("run", 0)) for r in rows), default=0)
+            done = {s.index for s in rows if s.state == "done"}
             remaining = [s for s in steps if s.index not in done]
-            n_pre = sum(1 for s in self.record.steps(ctx.session_id) if s.index >= PRELUDE_BASE)
+            n_pre = sum(1 for s in rows if s.index >= PRELUDE_BASE)
             if remaining and done:
+                remaining = self._redo(ctx, steps, remaining, done)
                 for k, s in enumerate(self.plan.resume_prelude(self.params, ctx, remaining[0])):
                     prelude.append(Step(PRELUDE_BASE + n_pre + k, s.name, s.actions, s.meta))
             self._event(
-                "resumed", {"skipped_steps": len(steps) - len(remaining), "remaining": len(remaining)}
+                "resumed",
+                {"skipped_steps": len(steps) - len(remaining), "remaining": len(remaining), "run": self._run},
             )
             steps = remaining
         with self._lock:
@@ -555,6 +606,32 @@ class SessionRunner:
             self._total = planned
             self._done = planned - len(steps)
         return steps, prelude
+
+    def _redo(self, ctx: PlanContext, steps: list[Step], remaining: list[Step], done: set[int]) -> list[Step]:
+        """The plan's resume rule (``resume_from``): a resume reruns from that step on, done or not, so
+        that no population mixes two runs. The rerun steps' earlier captures stay in the record, marked
+        by an ``abandoned`` event, and the analysis takes the new attempt's."""
+        rule = getattr(self.plan, "resume_from", None)
+        if rule is None:
+            return remaining
+        assert ctx.session_id is not None
+        first, reason = rule(self.params, ctx, steps, remaining[0])
+        redo = {s.index for s in steps if s.index >= first}
+        ids = [c.id for c in self.record.captures(ctx.session_id) if c.step_index in redo]
+        if ids or redo & done:
+            # every capture of the steps run again, the interrupted one's included: never analysed again
+            self._event("abandoned", {"reason": reason, "steps": sorted(redo & done), "captures": ids})
+        return [s for s in steps if s.index not in done or s.index >= first]
+
+    def _check_progress(self, sid: str, ctx: PlanContext) -> None:
+        """A plan's live gates (``check_progress``): once the step is stored and measured, the plan may
+        stop the session at once (``GateError``) when what it measured cannot be right."""
+        check = getattr(self.plan, "check_progress", None)
+        if check is None:
+            return
+        self._drain()
+        self._check_store()
+        check(self.params, ctx, self._capture_results(sid))
 
     def _connect(self, stack: contextlib.ExitStack) -> None:
         devices = self.devices
@@ -580,9 +657,41 @@ class SessionRunner:
         except Exception as exc:  # noqa: BLE001 - the others must still be closed
             self._event("warning", {"message": f"closing the {name} failed: {exc}"})
 
-    def _preflight(self, steps: Sequence[Step]) -> None:
-        """Every problem at once, before anything moves."""
-        problems: list[str] = []
+    def _route(self, ctx: PlanContext, prelude: Sequence[Step]) -> tuple[list[Step], list[str]]:
+        """The session's first motion: the arm's route to the plan's reference pose from where it is
+        commanded (``station.arm_route``), as a step; none when the arm is there. For a plan that never
+        moves the arm, the pre-flight problem when it is not there instead."""
+        devices = self.devices
+        robot = devices.robot if devices is not None else None
+        pose = self.plan.reference_pose(self.params, ctx)
+        if devices is None or robot is None or pose is None:
+            return [], []
+        try:
+            start = tuple(robot.where().commanded_joints_deg)
+        except DeviceError as exc:  # pre-flight says so too when the plan moves the arm
+            why = f"the robot cannot be read (a {self.plan.name} needs the arm at its reference pose): {exc}"
+            return [], [] if pose.route else [why]
+        safety = devices.config.robot.safety if devices.config.robot is not None else None
+        route = plan_route(start, pose.joints_deg, max_step_deg=max_step_of(safety))
+        if not route.moves:
+            return [], []
+        if not pose.route:
+            return [], [
+                f"the arm is not at its reference pose ({describe_offset(start, route.target_deg)}); a"
+                f" {self.plan.name} never moves the arm: {TO_REFERENCE_HINT}, then start again"
+            ]
+        assert ctx.session_id is not None
+        used = [s.index for s in self.record.steps(ctx.session_id)] + [s.index for s in prelude]
+        index = max([PRELUDE_BASE - 1, *used]) + 1
+        how = "through the lift pose" if route.via_lift else "direct"
+        meta = {"role": "route", "via_lift": route.via_lift, "start_deg": list(start)}
+        step = Step(index, f"to the reference pose ({how})", tuple(MoveJoints(q) for q in route.moves), meta)
+        # not one of the plan's steps: progress counts those (as it does not count a resume's prelude)
+        return [step], []
+
+    def _preflight(self, steps: Sequence[Step], problems: Sequence[str] = ()) -> None:
+        """Every problem at once (``problems``: those found before), before anything moves."""
+        problems = list(problems)
         devices = self.devices
         robot = devices.robot if devices is not None else None
         uses_robot = any(isinstance(a, MoveJoints | SetSpeed) for s in steps for a in s.actions)
@@ -640,7 +749,11 @@ class SessionRunner:
                             problems.append(f"{step.name}: {exc}")
         if len(problems) > 20:
             problems = [*problems[:20], f"... and {len(problems) - 20} more"]
-        self._event("preflight", {"problems": problems, "steps": len(steps)})
+        with self._lock:
+            planned = self._total
+        # ``steps``: every step checked (the route and a resume's prelude included); ``plan_steps``: the
+        # plan's over the whole session, which progress counts
+        self._event("preflight", {"problems": problems, "steps": len(steps), "plan_steps": planned})
         if problems:
             raise PreflightError(problems)
 
@@ -670,7 +783,7 @@ class SessionRunner:
         A step is ``done`` in the record only once everything it captured is stored and measured."""
         self._check_store()
         t0 = time.monotonic()
-        self.record.begin_step(sid, step.index, step.name, dict(step.meta))
+        self.record.begin_step(sid, step.index, step.name, {**step.meta, **self._run_meta()})
         self._event("step_started", {"index": step.index, "name": step.name})
         data: dict[str, Any] = {}
         grabbed: list[tuple[list[Frame], dict[str, Any], int]] = []
@@ -793,12 +906,17 @@ class SessionRunner:
         elif isinstance(action, MoveTable):
             table = require(devices.table, "table")
             timeout = getattr(self.params, "prompt_timeout_s", None)
-            # the operator's prompt says which position of how many, and whether this is the overshoot
-            with devices.broker.context(
-                position=step.index + 1,
-                positions=self._total,
-                move="overshoot" if action.overshoot else "position",
-            ):
+            # the operator's prompt says which position of how many, whether this is the overshoot, and
+            # whether it is a resume's check of the last confirmed position
+            at = step.meta.get("position")  # a resume's check repeats an earlier position
+            details: dict[str, str | float] = {
+                "position": (at if isinstance(at, int) else step.index) + 1,
+                "positions": self._total,
+                "move": "overshoot" if action.overshoot else "position",
+            }
+            if step.meta.get("role") == "resume_check":
+                details["purpose"] = "resume_check"
+            with devices.broker.context(**details):
                 pos = table.move_to(action.x_mm, action.y_mm, timeout_s=timeout)
             return {} if action.overshoot else {"table_confirmed_mm": [pos.x_mm, pos.y_mm]}
         elif isinstance(action, Settle):
@@ -871,7 +989,7 @@ class SessionRunner:
         """In the runner thread (the devices' only user): where the arm is, then the frames."""
         devices = self.devices
         assert devices is not None
-        meta: dict[str, Any] = dict(action.meta)
+        meta: dict[str, Any] = {**action.meta, **self._run_meta()}
         if devices.robot is not None:
             pos = devices.robot.where()
             meta["joints_deg"] = list(pos.joints_deg)
@@ -890,6 +1008,10 @@ class SessionRunner:
         frames = devices.camera.grab_many(action.frames)
         self._frames_in_step += len(frames)
         return frames, meta, first
+
+    def _run_meta(self) -> dict[str, int]:
+        """``{"run": n}`` for the n-th resumed run of a session (nothing for its first: unchanged)."""
+        return {"run": self._run} if self._run else {}
 
     def _read_z(self, sensor: DistanceSensor) -> tuple[float | None, str | None]:
         """The distance sensor's reading for a capture: (mm, None), or (None, why) when it has no valid
@@ -957,10 +1079,10 @@ class SessionRunner:
         reference = devices.reference_joints_deg if devices is not None else None
         if devices is None or devices.robot is None or reference is None or "robot" not in self.plan.needs:
             return
+        safety = devices.config.robot.safety if devices.config.robot is not None else None
         try:
-            devices.robot.check_move(reference)
-            devices.robot.move_joints(reference)
-            self._event("returned", {"joints_deg": list(reference)})
+            done = go_to_reference(devices.robot, reference, max_step_deg=max_step_of(safety))
+            self._event("returned", {"joints_deg": list(reference), "moves": done.moves})
         except DeviceError as exc:
             self._event("warning", {"message": f"could not return to the reference pose: {exc}"})
 

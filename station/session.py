@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from station import scale_calibration as scal
+from station.compute import ComputeSpec, open_backend
 from station.config import (
     ConfigurationError,
     StationConfig,
@@ -50,10 +51,16 @@ def data_dir_for(data: str | Path | None, config: StationConfig | None = None) -
 
 
 def open_record(
-    data: str | Path | None = None, database: str | None = None, config: StationConfig | None = None
+    data: str | Path | None = None,
+    database: str | None = None,
+    config: StationConfig | None = None,
+    *,
+    read_only: bool = False,
 ) -> Record:
+    """The record of ``--data`` / ``--database`` (or the configuration's); ``read_only`` for commands
+    that only read it (nothing created, migrated or written)."""
     url = database or (config.database if config is not None else None)
-    return Record(data_dir_for(data, config), url)
+    return Record(data_dir_for(data, config), url, read_only=read_only)
 
 
 def measure_params_for(
@@ -114,6 +121,7 @@ def run_session(
     database: str | None = None,
     resume: str | None = None,
     jobs: int = 1,
+    compute: ComputeSpec | None = None,
     on_event: Callable[[EventRow], None] | None = None,
     on_runner: Callable[[SessionRunner], None] | None = None,
 ) -> SessionOutcome:
@@ -122,6 +130,8 @@ def run_session(
     ``sim``: the simulated station (``True``, or a mapping of ``build_sim_station`` options);
     ``config``: a station configuration file or model; offline plans (sweep, reanalyse) need neither.
     ``params``: the plan's parameters; ``assignments``: measurement parameters (``--set``).
+    ``compute``: where offline plans measure (``station.compute``); default: the configuration's
+    ``[compute]``, else a local pool of ``jobs`` processes.
     ``on_runner`` gets the runner before it runs (to pause, stop or abort it from another thread).
     """
     cfg = config if isinstance(config, StationConfig) or config is None else load_config(config)
@@ -155,6 +165,8 @@ def run_session(
         elif plan.needs:
             assert cfg is not None  # checked above
             devices = build_station(cfg)
+        spec = compute or (cfg.compute.spec(jobs) if cfg is not None else ComputeSpec(jobs=jobs))
+        backend = open_backend(spec)
         try:
             runner = SessionRunner(
                 record,
@@ -165,6 +177,7 @@ def run_session(
                 scale_calibration=cal_doc,
                 resume_session=previous,
                 jobs=jobs,
+                compute=backend,
                 station=(devices.config.name if devices is not None else (cfg.name if cfg else "default")),
             )
             if on_event is not None:
@@ -174,12 +187,11 @@ def run_session(
             with terminal_prompts(devices) if devices is not None else contextlib.nullcontext():
                 runner.run()
         finally:
+            backend.close()
             if devices is not None:
                 devices.close_owned()
         assert runner.session_id is not None
-        row = record.get_session(runner.session_id)
-        save_scale_calibration(record, row)
-        return SessionOutcome.of(row)
+        return SessionOutcome.of(record.get_session(runner.session_id))
     finally:
         record.close()
 
@@ -207,19 +219,6 @@ def session_measure_params(
         # record of where that width came from
         cal_doc = record.get_session(str(plan_values["session"])).params.get("scale_calibration")
     return params, cal_doc
-
-
-def save_scale_calibration(record: Record, row: SessionRow) -> None:
-    """After a validation that succeeded: its groove-width estimate becomes the station's scale
-    calibration (``DATA/scale-calibration.json``), used by later sessions."""
-    if (
-        row.kind == "validation"
-        and row.state == "succeeded"
-        and row.results
-        and row.results.get("scale_calibration")
-    ):
-        cal = scal.ScaleCalibration.model_validate(row.results["scale_calibration"])
-        scal.save(cal, scal.station_file(record.data_dir))
 
 
 def _calibration(

@@ -17,6 +17,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from station.compute import MeasureBackend
 from station.imagesets import ImageSet
 from station.validation import ValidationError, ValidationResult, validate
 from station.vision import MeasureParams
@@ -98,16 +99,18 @@ def run_sweep(
     overrides: Sequence[Mapping[str, Any]],
     *,
     jobs: int = 1,
+    backend: MeasureBackend | None = None,
     calibration: str = "image",
     on_trial: Callable[[Trial], None] | None = None,
 ) -> list[Trial]:
     """Validate ``image_set`` once per parameter override; a trial whose parameters are invalid or whose
-    images cannot be measured is kept with its error, and the sweep goes on."""
+    images cannot be measured is kept with its error, and the sweep goes on. The images are measured
+    on ``backend`` (``station.compute``), else in a local pool of ``jobs`` processes."""
     trials: list[Trial] = []
     for number, change in enumerate(overrides, start=1):
         params = base.with_values(**change)
         try:
-            result = validate(image_set, params, jobs=jobs, calibration=calibration)
+            result = validate(image_set, params, jobs=jobs, backend=backend, calibration=calibration)
             trial = Trial(number, dict(change), params, result)
         except ValidationError as exc:
             trial = Trial(number, dict(change), params, None, str(exc))

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
-from station.batch import FileResult, measure_files
+from station.batch import FileResult
+from station.compute import LocalBackend, MeasureBackend
 from station.imagesets import ImageSet
 from station.metrology import DisplacementComparison, compare_displacements
 from station.vision import MeasureParams, series_centers_mm
@@ -56,19 +58,29 @@ def center_errors(image_set: ImageSet, results: tuple[FileResult, ...]) -> Float
 
 
 def validate(
-    image_set: ImageSet, params: MeasureParams, *, jobs: int = 1, calibration: str = "series"
+    image_set: ImageSet,
+    params: MeasureParams,
+    *,
+    jobs: int = 1,
+    backend: MeasureBackend | None = None,
+    calibration: str = "series",
 ) -> ValidationResult:
     """Measure every image of a validation set and compare measured with commanded displacements.
 
     Displacements are taken relative to the first image measured; images that fail are left out of the
     comparison (and listed in ``failures``). ``calibration``: ``series`` maps every image with one
     homography fitted from all of them; ``image`` uses each image's own (the seed's convention).
+    The images are measured on ``backend`` (``station.compute``), else in a local pool of ``jobs``.
     """
     if calibration not in CALIBRATIONS:
         raise ValidationError(f"calibration {calibration!r} is not one of {', '.join(CALIBRATIONS)}")
     if image_set.displacements_um is None:
         raise ValidationError(f"{image_set.root}: no displacements.csv: not a validation set")
-    results = tuple(measure_files(image_set.files, params, jobs=jobs))
+    if backend is None:
+        with contextlib.closing(LocalBackend(jobs)) as local:
+            results = tuple(local.measure(image_set.files, params))
+    else:
+        results = tuple(backend.measure(image_set.files, params))
     used = np.array([r.ok for r in results])
     if used.sum() < 3:
         raise ValidationError(

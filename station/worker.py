@@ -45,9 +45,10 @@ from multiprocessing.connection import Connection, Pipe
 from pathlib import Path
 from typing import Any
 
+from station.compute import ComputeSpec, open_backend
 from station.plans import get_plan, parse_params
 from station.prompts import Prompt, PromptAnswer, PromptBroker, PromptEvent
-from station.record import EventRow, RecordError, SessionLockError, lock_holder
+from station.record import EventRow, RecordError, SessionLockError, lock_holder, station_lock
 from station.runner import (
     FINAL_STATES,
     PreflightError,
@@ -87,7 +88,7 @@ class WorkerSpec:
     manual_prompts: bool = False
     config: Path | None = None
     data: Path | None = None
-    database: str | None = None
+    database: str | None = field(default=None, repr=False)  # a URL may hold a password
     sim_options: dict[str, Any] = field(default_factory=dict)
     log_level: int = logging.INFO
     """The worker's log records at this level and above reach the front end's loggers (which filter them
@@ -121,6 +122,11 @@ class RunnerStatus:
 
 
 DEVICE_NAMES = ("robot", "camera", "table", "distance_sensor")
+NO_REFERENCE = (
+    "this station has no robot with a reference pose (configure [robot] with reference_joints_deg, or start"
+    " the service with --sim)"
+)
+"""Why the arm's reference-pose route is not available."""
 
 
 # --------------------------------------------------------------------------- exceptions over the pipe
@@ -191,10 +197,15 @@ class SessionHost:
         self._runner: SessionRunner | None = None
         self._thread: threading.Thread | None = None
         self._closed = False
+        self._moving = False  # the arm is on its way to the reference pose (rpc_to_reference)
         self._listeners: list[Callable[[EventRow], None]] = []
         self._prompt_watch: threading.Thread | None = None
         self._prompt_events: list[PromptEvent] = []
         self._prompt_cond = threading.Condition()
+        # where re-analyses and sweeps measure: the configuration's [compute] (a cluster is reached
+        # on the first session that needs it, and again after it was lost)
+        cfg = self.station_config
+        self.compute = open_backend(cfg.compute.spec() if cfg is not None else ComputeSpec())
         if self.devices is not None:
             self.devices.broker.subscribe(self._on_prompt_event)
             self._prompt_watch = threading.Thread(target=self._forward_prompts, name="prompts", daemon=True)
@@ -286,7 +297,7 @@ class SessionHost:
                 measure_params=measure_params,
                 scale_calibration=cal_doc,
                 station=self._station_name(),
-                jobs=1,
+                compute=self.compute,
             )
         )
 
@@ -308,6 +319,7 @@ class SessionHost:
                 scale_calibration=row.params.get("scale_calibration"),
                 resume_session=row,
                 station=self._station_name(),
+                compute=self.compute,
             )
         )
 
@@ -345,6 +357,10 @@ class SessionHost:
                     f"session {current.session_id} ({current.plan.name}) is {current.state}: one session "
                     "at a time; wait for it to end, or stop or abort it first"
                 )
+            if self._moving:
+                raise ConflictError(
+                    "the arm is on its way to its reference pose (to-reference): start once it has arrived"
+                )
             holder = lock_holder(self.record.data_dir)
             if holder is not None:
                 raise SessionLockError(str(self.record.data_dir / "station.lock"), holder)
@@ -377,8 +393,6 @@ class SessionHost:
         return runner.session_id
 
     def _run(self, runner: SessionRunner) -> None:
-        from station.session import save_scale_calibration
-
         try:
             runner.run()
         except SessionLockError as exc:
@@ -389,9 +403,6 @@ class SessionHost:
         except Exception:
             log.exception("session %s ended with an error", runner.session_id)
             return
-        if runner.session_id is not None:
-            with contextlib.suppress(RecordError, OSError, ValueError):
-                save_scale_calibration(self.record, self.record.get_session(runner.session_id))
 
     # ------------------------------------------------------------------ prompts and the camera
 
@@ -425,7 +436,7 @@ class SessionHost:
                 )
             if self.devices is None:
                 raise NotAvailableError("this service has no station (start it with --sim or --config)")
-            holder = lock_holder(self.record.data_dir)
+            holder = None if self._moving else lock_holder(self.record.data_dir)  # ours while it moves
             if holder is not None:
                 raise SessionLockError(str(self.record.data_dir / "station.lock"), holder)
             camera = self.devices.camera
@@ -435,37 +446,102 @@ class SessionHost:
             finally:
                 camera.close()
 
+    # ------------------------------------------------------------------ the arm outside sessions
+
+    def _idle_robot(self, what: str) -> Any:
+        """The robot (None without one) when no session runs, the arm is not already moving and no other
+        process holds the station (ConflictError, SessionLockError otherwise); call with the lock held."""
+        runner = self._runner
+        if self._closed:
+            raise ConflictError("the service is shutting down")
+        if runner is not None and runner.state not in FINAL_STATES:
+            raise ConflictError(
+                f"session {runner.session_id} ({runner.plan.name}) is {runner.state} and owns the arm: {what}"
+                " once it has ended (or stop or abort it first)"
+            )
+        if self._moving:
+            raise ConflictError(f"the arm is on its way to its reference pose: {what} once it has arrived")
+        robot = self.devices.robot if self.devices is not None else None
+        if robot is None:
+            return None
+        holder = lock_holder(self.record.data_dir)
+        if holder is not None:
+            raise SessionLockError(str(self.record.data_dir / "station.lock"), holder)
+        return robot
+
     def rpc_robot_state(self) -> dict[str, Any] | None:
-        """The robot read now: identity, power, homed, attained and commanded joints (deg) and the
-        configured reference pose; None without a robot. It is connected for the read and closed again
-        (reads only: nothing moves). ConflictError while a session owns it."""
+        """The arm read now, in one connection (connect, read, close: nothing moves): ``identity``,
+        ``power``, ``homed``, ``joints_deg``, ``commanded_joints_deg``, ``world_mm_deg`` and, when the
+        station has a reference pose, ``reference_joints_deg``, ``at_reference`` and the ``route``
+        ``to-reference`` would take from here with every problem the driver's checks find in it
+        (``station.arm_route.robot_status``; else those three are None). None without a robot.
+        ConflictError while a session owns the arm or it is on its way; SessionLockError while another
+        process holds the station."""
         from dataclasses import asdict
+
+        from station.arm_route import ArmPose, robot_status
 
         self._settle()
         with self._lock:
-            runner = self._runner
-            if runner is not None and runner.state not in FINAL_STATES:
-                raise ConflictError(f"session {runner.session_id} owns the robot")
-            robot = self.devices.robot if self.devices is not None else None
+            robot = self._idle_robot("read it")
             if robot is None:
                 return None
-            holder = lock_holder(self.record.data_dir)
-            if holder is not None:
-                raise SessionLockError(str(self.record.data_dir / "station.lock"), holder)
+            reference = self.devices.reference_joints_deg
             robot.connect()
             try:
-                status, position, identity = robot.status(), robot.where(), robot.identity()
+                status, identity = robot.status(), robot.identity()
+                if reference is not None:
+                    arm = robot_status(robot, reference, self._max_step())
+                    position = arm.position
+                    against: dict[str, Any] = {
+                        "reference_joints_deg": arm.reference_joints_deg,
+                        "at_reference": arm.at_reference,
+                        "route": arm.route.model_dump(mode="json"),
+                    }
+                else:
+                    position = ArmPose.of(robot.where())
+                    against = {"reference_joints_deg": None, "at_reference": None, "route": None}
             finally:
                 robot.close()
-        reference = self.devices.reference_joints_deg
         return {
             "identity": asdict(identity),
             "power": status.power,
             "homed": status.homed,
-            "joints_deg": list(position.joints_deg),
-            "commanded_joints_deg": list(position.commanded_joints_deg),
-            "reference_joints_deg": list(reference) if reference is not None else None,
+            **position.model_dump(mode="json"),
+            **against,
         }
+
+    def rpc_to_reference(self) -> dict[str, Any]:
+        """Take the arm to the station's reference pose along its route (``station.arm_route``), every move
+        checked before the first is sent (RouteRejectedError: nothing moved); what it did, as JSON."""
+        from station.arm_route import go_to_reference
+
+        with self._lock:
+            robot = self._idle_robot("move it")
+            if robot is None or self.devices.reference_joints_deg is None:
+                raise NotAvailableError(NO_REFERENCE)
+            self._moving = True
+        try:
+            with station_lock(self.record.data_dir, "to-reference"):
+                robot.connect()
+                try:
+                    robot.clear_stop()  # an operator's command, as a session's start is
+                    result = go_to_reference(
+                        robot, self.devices.reference_joints_deg, max_step_deg=self._max_step()
+                    )
+                finally:
+                    robot.close()
+        finally:
+            with self._lock:
+                self._moving = False
+        log.info("the arm is at its reference pose after %d move(s)", len(result.moves))
+        return result.model_dump(mode="json")
+
+    def _max_step(self) -> float:
+        from station.arm_route import max_step_of
+
+        robot = self.devices.config.robot
+        return max_step_of(robot.safety if robot is not None else None)
 
     def rpc_call(self, fn: Callable[..., Any], args: tuple[Any, ...]) -> Any:
         """``fn(host, *args)`` in the worker: tests and benchmarks reach a simulated station's truth."""
@@ -486,6 +562,9 @@ class SessionHost:
             self._closed = True
         with self._prompt_cond:
             self._prompt_cond.notify_all()
+        if self._moving and self.devices is not None and self.devices.robot is not None:
+            with contextlib.suppress(Exception):
+                self.devices.robot.stop()  # the arm on its way to the reference pose stops too
         runner, thread = self._runner, self._thread
         if runner is not None and thread is not None and thread.is_alive():
             sid = runner.session_id
@@ -504,6 +583,7 @@ class SessionHost:
                         self._send(("event", event, status))
         if self.devices is not None:
             self.devices.close_owned()
+        self.compute.close()
         self.record.close()
 
 

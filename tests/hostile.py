@@ -73,15 +73,24 @@ def cross(
 
 
 def t_junction(
-    cx: float, cy: float, rotation_deg: float, missing: str, *, preset: str = "nominal"
+    cx: float,
+    cy: float,
+    rotation_deg: float,
+    missing: str,
+    *,
+    preset: str = "nominal",
+    ends_px: float = 0.0,
 ) -> np.ndarray:
-    """A T-junction: a rendered cross whose ``missing`` arm (left, right, upper, lower) is bare land."""
+    """A T-junction: a rendered cross whose ``missing`` arm (left, right, upper, lower) is bare land
+    from ``ends_px`` beyond the crossing's corners on (0: the whole arm; more: a stub that long)."""
     image, truth = cross(cx, cy, rotation_deg, preset=preset)
     land, _ = cross(-3000.0, -3000.0, rotation_deg, seed=1, preset=preset)  # the same lands, no groove
     c = np.asarray(truth.corners_px)  # top-left, top-right, bottom-right, bottom-left
     p, q = {"left": (c[3], c[0]), "right": (c[1], c[2]), "upper": (c[0], c[1]), "lower": (c[2], c[3])}[
         missing
     ]
+    outward = np.array([q[1] - p[1], -(q[0] - p[0])]) / np.hypot(*(q - p))  # away from the crossing
+    p, q = p + ends_px * outward, q + ends_px * outward
     h, w = image.shape
     yy, xx = np.mgrid[0:h, 0:w]
     beyond = (q[0] - p[0]) * (yy - p[1]) - (q[1] - p[1]) * (xx - p[0]) < 0

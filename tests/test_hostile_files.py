@@ -6,18 +6,19 @@ from __future__ import annotations
 import base64
 import json
 import os
-import signal
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 
-from station.batch import FileResult, measure_file, measure_files
+from station.batch import FileResult, measure_file
 from station.cli import main
+from station.compute import LocalBackend
 from station.imageio import ImageFileError, read_image
 from station.vision import MeasureParams, measure
 from tests.hostile import cross, run_station, with_sbit, write_png_bomb
+from tests.poison import dies_on_poison
 
 
 @pytest.fixture(scope="module")
@@ -130,20 +131,13 @@ def test_a_non_utf8_file_name_is_replaced_and_kept_raw_in_base64(tmp_path: Path,
     assert "file_bytes_b64" not in plain  # only for names that are not UTF-8
 
 
-def _dies_on_poison(path: str, params: MeasureParams, limits: object) -> FileResult:
-    """A worker that crashes (the kernel's OOM killer sends SIGKILL) on files named poison*."""
-    if Path(path).name.startswith("poison"):
-        os.kill(os.getpid(), signal.SIGKILL)
-    return measure_file(path, params, limits)  # type: ignore[arg-type]
-
-
 def test_a_worker_that_dies_gives_its_file_an_error_line_and_the_batch_goes_on(
     tmp_path: Path, good: Path
 ) -> None:
     poison = tmp_path / "poison.png"
     poison.write_bytes(good.read_bytes())
     files = [good, good, poison, good, good, good, good, good]
-    results = list(measure_files(files, MeasureParams(), jobs=2, measure_one=_dies_on_poison))
+    results = list(LocalBackend(2, measure_one=dies_on_poison).measure(files, MeasureParams()))
     assert [r.file for r in results] == [str(f) for f in files]
     assert [r.ok for r in results] == [True, True, False, True, True, True, True, True]
     assert results[2].code == "worker_died"

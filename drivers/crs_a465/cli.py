@@ -1,11 +1,14 @@
 """``station robot``: talk to a C500C controller (a real one, ``station sim controller``, any emulator).
 
-    station robot (--sim | --port PORT [--baud N]) [--json] COMMAND
+    station robot (--sim | --port PORT [--baud N]) [--config FILE] [--json] COMMAND
 
 COMMAND: ``status``, ``where``, ``home``, ``ready``, ``speed PERCENT``, ``joint AXIS DEGREES``
 (relative), ``move-joints D1 D2 D3 D4 D5 D6`` (absolute), ``move-camera X Y Z Z_ROT Y_ROT X_ROT
 --calibration FILE`` (a compensated move: the calibrated model's inverse kinematics, then joint
-moves). ``--sim`` starts a fresh controller twin
+moves), ``to-reference`` (the arm's route from wherever it is to the station's reference pose,
+``station.arm_route``: needs ``--config``). ``--config FILE`` is the station configuration: its
+``[robot]`` reference pose, and its safety limits for every command (``--max-step`` still overrides
+its step). ``--sim`` starts a fresh controller twin
 for this call (through the device registry: drivers never import ``sim``). Motion commands return once
 the arm has arrived, then print the position. Exit 0 on success, 1 when the controller or the host's
 checks refuse (the message on stderr), 2 on a usage error or a bad option value (one line, nothing
@@ -34,6 +37,7 @@ from drivers.crs_a465._motion import MotionSettings
 from drivers.crs_a465._robot import CrsA465
 from drivers.crs_a465._safety import SafetyLimits
 from station import config
+from station.arm_route import go_to_reference
 from station.devices import JOINT_COUNT, DeviceError, RobotPosition, RobotStatus
 
 log = logging.getLogger(__name__)
@@ -118,8 +122,11 @@ def _run_command(robot: CrsA465, args: argparse.Namespace) -> None:
         "joint": lambda: robot.move_joint(args.axis, args.degrees),
         "move-joints": lambda: robot.move_joints(args.degrees),
         "move-camera": lambda: _move_camera(robot, args),
+        "to-reference": lambda: _to_reference(robot, args),
     }
     actions[name]()  # motions return once the arm has arrived
+    if name == "to-reference":
+        return
     if name == "speed":
         _print_status(robot.status(), args.json)
     else:
@@ -132,6 +139,49 @@ def _move_camera(robot: CrsA465, args: argparse.Namespace) -> None:
 
     pose = pose_from_world_row(args.pose)
     move_camera(robot, args.calibrated, pose, max_step_deg=robot.guard.limits.max_step_deg * 0.9)
+
+
+def _to_reference(robot: CrsA465, args: argparse.Namespace) -> None:
+    """The route to the configuration's reference pose, every move checked before the first is sent."""
+    done = go_to_reference(robot, args.reference, max_step_deg=robot.guard.limits.max_step_deg)
+    if args.json:
+        _out(done.model_dump_json())
+        return
+    how = "through the lift pose" if done.via_lift else "direct"
+    n = len(done.moves)
+    _out(f"route      {how}, {n} move{'s' if n != 1 else ''}" if n else "route      none: already there")
+    for k, q in enumerate(done.moves, start=1):
+        _out(f"move {k:<6}{_fmt_row(tuple(q), 'deg')}")
+    final = done.final_pose
+    _print_position(
+        RobotPosition(
+            tuple(final.joints_deg),
+            tuple(final.commanded_joints_deg),
+            None if final.world_mm_deg is None else tuple(final.world_mm_deg),
+        ),
+        False,
+    )
+
+
+def _station_config(args: argparse.Namespace) -> dict[str, Any]:
+    """``--config``'s robot safety limits (keyword values of :class:`SafetyLimits`), and its reference
+    pose on ``args.reference``; ``to-reference`` without ``--config`` is a usage error."""
+    args.reference = None
+    if args.config is None:
+        if args.robot_command == "to-reference":
+            raise _BadOptionError(
+                "to-reference needs --config FILE: the station configuration's [robot] reference pose and"
+                " safety limits"
+            )
+        return {}
+    try:
+        station = config.load_config(args.config)
+    except config.ConfigurationError as exc:
+        raise _BadOptionError(f"--config: {exc}") from None
+    if station.robot is None:
+        raise _BadOptionError(f"--config {args.config}: no [robot] section (its reference pose and safety)")
+    args.reference = tuple(station.robot.reference_joints_deg)
+    return dict(station.robot.safety)
 
 
 _OPTION_OF_FIELD = {
@@ -196,7 +246,7 @@ def _settings(args: argparse.Namespace) -> dict[str, Any]:
     timeout = _number("--timeout", args.timeout, float)
     if timeout is not None:
         link["reply_timeout_s"] = timeout
-    safety: dict[str, Any] = {}
+    safety: dict[str, Any] = _station_config(args)
     max_step = _number("--max-step", args.max_step, float)
     if max_step is not None:
         safety["max_step_deg"] = max_step
@@ -317,7 +367,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg,
     """Add ``station robot`` to the station's sub-commands."""
     parser = sub.add_parser(
         "robot",
-        help="CRS A465 on a C500C controller: status, where, home, ready, speed, joint, move-joints",
+        help="CRS A465 on a C500C controller: status, where, home, ready, speed, joint, move-joints,"
+        " to-reference",
         description="Talk to a C500C controller: a real one, `station sim controller`, or any emulator.",
     )
     target = parser.add_mutually_exclusive_group(required=True)
@@ -325,6 +376,12 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg,
     target.add_argument("--port", help="serial port or pyserial URL of the controller (e.g. /dev/ttyS0)")
     parser.add_argument("--baud", default=None, metavar="N", help="baud rate (default 57600)")
     parser.add_argument("--json", action="store_true", help="print JSON")
+    parser.add_argument(
+        "--config",
+        default=None,
+        metavar="FILE",
+        help="station configuration (TOML): the reference pose and the cell's safety limits",
+    )
     parser.add_argument(
         "--shell",
         choices=("system", "application"),
@@ -363,6 +420,16 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg,
     )
     camera.add_argument("pose", type=float, nargs=6, metavar="V")
     camera.add_argument("--calibration", required=True, metavar="FILE", help="a calibrated parameter set")
+    commands.add_parser(
+        "to-reference",
+        help="the arm to the station's reference pose from wherever it is (needs --config)",
+        description="Take the arm to the reference pose of --config's [robot]: a single move when every"
+        " joint is within one step of it, else up through the lift pose (upper arm and forearm upright),"
+        " across and down; every move within the largest joint step and checked (limits, step, keep-out)"
+        " from the arm's commanded position before the first is sent. Prints the moves and where the arm"
+        " is (--json: one object with reference_joints_deg, start, moves, via_lift, final_pose,"
+        " at_reference).",
+    )
     parser.set_defaults(func=handle)
 
 

@@ -10,6 +10,7 @@ from pydantic import ValidationError
 
 from station.batch import default_jobs, max_jobs
 from station.camera_model import CameraModelError, load_camera_model
+from station.compute import CLUSTER_HELP, ComputeSpec, parse_cluster
 from station.imageio import ImageFileError, read_file_bytes
 from station.vision import MeasureParams, parse_assignments
 from station.vision._params import allowed_range
@@ -74,6 +75,45 @@ def add_measure_options(parser: argparse.ArgumentParser) -> None:
         default=None,
         help=f"worker processes, 1 to {max_jobs()} (default: all cores, {default_jobs()})",
     )
+
+
+def cluster_value(text: str) -> str:
+    """An argparse ``type`` for ``--cluster``: ``local``, ``local:N`` or a scheduler's address."""
+    try:
+        return parse_cluster(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def add_compute_options(parser: argparse.ArgumentParser) -> None:
+    """``--cluster`` and ``--ship-images``: where the frames are measured (``station.compute``)."""
+    parser.add_argument("--cluster", type=cluster_value, default=None, metavar="ADDRESS", help=CLUSTER_HELP)
+    parser.add_argument(
+        "--ship-images",
+        action="store_true",
+        help="send each frame's bytes to the cluster's workers (for workers that do not share the data "
+        "directory at the same path)",
+    )
+
+
+def compute_spec(
+    parser: argparse.ArgumentParser, args: argparse.Namespace, *, jobs: int
+) -> ComputeSpec | None:
+    """The backend the command line names (None: not named, the default applies); ``jobs``: the local
+    pool's size when ``--jobs`` is not given. Usage errors exit 2."""
+    if args.cluster is None:
+        if args.ship_images:
+            parser.error("--ship-images sends the frames to a cluster's workers: give --cluster too")
+        return None
+    if args.cluster != "local" and args.jobs is not None:
+        parser.error(
+            "--jobs sizes the local pool; on a cluster its workers measure (size them with "
+            "`dask worker --nworkers N`, or --cluster local:N here): drop --jobs or --cluster"
+        )
+    try:
+        return ComputeSpec(args.cluster, args.jobs or jobs, args.ship_images)
+    except ValueError as exc:
+        parser.error(str(exc))
 
 
 def _describe(exc: ValidationError) -> str:

@@ -9,9 +9,18 @@ import sys
 from tqdm import tqdm
 
 from station import scale_calibration
-from station.batch import FileResult, default_jobs, measure_files
+from station.batch import FileResult, default_jobs
 from station.commands import SubParsers
-from station.commands._common import SMALL_FILE_MAX_BYTES, add_measure_options, finite_float, params_from_args
+from station.commands._common import (
+    SMALL_FILE_MAX_BYTES,
+    add_compute_options,
+    add_measure_options,
+    compute_spec,
+    finite_float,
+    params_from_args,
+)
+from station.commands._ruler_options import add_artifact_options, ruler_params_from_args, ruler_rows
+from station.compute import ComputeError, ComputeSpec, open_backend
 from station.imageio import (
     DEFAULT_MAX_BYTES,
     DEFAULT_MAX_PIXELS,
@@ -20,14 +29,16 @@ from station.imageio import (
     read_file_bytes,
 )
 from station.report import measurement_rows
+from station.vision import MeasureParams, RulerParams
 
 
 def register(sub: SubParsers) -> None:
     p = sub.add_parser(
         "measure",
-        help="measure the crossing in image files",
-        description="Measure the artifact's crossing in each IMAGE. Exit 0 when all were measured, "
-        "1 when any failed, 2 for usage errors.",
+        help="measure the crossing (or the ruler) in image files",
+        description="Measure the artifact's crossing (or, with --artifact ruler, the position along the "
+        "ruler) in each IMAGE. Exit 0 when all were measured, 1 when any failed (or the cluster failed), "
+        "2 for usage errors.",
     )
     p.add_argument("images", nargs="+", metavar="IMAGE")
     p.add_argument("--json", action="store_true", help="one JSON object per image per line (stdout)")
@@ -60,10 +71,17 @@ def register(sub: SubParsers) -> None:
         help=f"refuse images whose header declares more pixels (default {DEFAULT_MAX_PIXELS / 1e6:g} Mpx)",
     )
     add_measure_options(p)
+    add_compute_options(p)
+    add_artifact_options(p)
     p.set_defaults(func=lambda args: run(p, args))
 
 
 def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
+    spec = compute_spec(parser, args, jobs=default_jobs()) or ComputeSpec(jobs=args.jobs or default_jobs())
+    if args.artifact == "ruler":
+        return _measure(parser, args, ruler_params_from_args(parser, args), None, spec)
+    if args.ruler is not None:
+        parser.error("--ruler applies to --artifact ruler only")
     params = params_from_args(parser, args)
     calibration: dict[str, object] | None = None
     if args.scale_calibration is not None:
@@ -79,24 +97,43 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         if not any(a.split("=", 1)[0].strip().lower() == "groove_width_mm" for a in args.assignments):
             params = params.with_values(groove_width_mm=cal.groove_width_mm)
         calibration = cal.record(args.scale_calibration)
+    return _measure(parser, args, params, calibration, spec)
+
+
+def _measure(
+    parser: argparse.ArgumentParser,
+    args: argparse.Namespace,
+    params: MeasureParams | RulerParams,
+    calibration: dict[str, object] | None,
+    spec: ComputeSpec,
+) -> int:
     limits = ImageLimits(
         max_bytes=max(1, int(args.max_file_mb * 2**20)), max_pixels=max(1, int(args.max_megapixels * 1e6))
     )
-    jobs = args.jobs if args.jobs is not None else default_jobs()
     results: list[FileResult] = []
     # progress on stderr, shown only on a terminal (tqdm's disable=None)
     bar = tqdm(total=len(args.images), unit="img", file=sys.stderr, disable=None, leave=False)
-    for result in measure_files(args.images, params, jobs=jobs, limits=limits):
-        bar.update()
-        results.append(result)
-        if not result.ok:
-            print(f"station measure: {result.file}: {result.error}", file=sys.stderr)
-        if args.json:
-            doc = result.to_json()
-            if calibration is not None and doc.get("ok"):
-                doc["diagnostics"]["scale_calibration"] = calibration
-            print(json.dumps(doc), flush=True)
+    backend = open_backend(spec)
+    try:
+        for result in backend.measure(args.images, params, limits=limits):
+            bar.update()
+            results.append(result)
+            if not result.ok:
+                print(f"station measure: {result.file}: {result.error}", file=sys.stderr)
+            if args.json:
+                doc = result.to_json()
+                if calibration is not None and doc.get("ok"):
+                    doc["diagnostics"]["scale_calibration"] = calibration
+                print(json.dumps(doc), flush=True)
+    except ComputeError as exc:
+        bar.close()
+        print(
+            f"station measure: {exc} ({len(results)} of {len(args.images)} images measured)", file=sys.stderr
+        )
+        return 1
+    finally:
+        backend.close()
     bar.close()
     if not args.json:
-        print(measurement_rows(results))
+        print(ruler_rows(results) if isinstance(params, RulerParams) else measurement_rows(results))
     return 0 if all(r.ok for r in results) else 1

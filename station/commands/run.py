@@ -17,7 +17,9 @@ import threading
 from collections.abc import Sequence
 from typing import Any
 
+from station.batch import max_jobs
 from station.commands import SubParsers
+from station.commands._common import add_compute_options, compute_spec
 from station.config import ConfigurationError
 from station.devices import DeviceError
 from station.plans import PLAN_NAMES, PlanError
@@ -64,7 +66,14 @@ def register(sub: SubParsers) -> None:
         metavar="NAME=VALUE",
         help="measurement parameter (as in station measure)",
     )
-    p.add_argument("-j", "--jobs", type=int, default=1, help="worker processes for sweep and reanalyse")
+    p.add_argument(
+        "-j",
+        "--jobs",
+        type=int,  # bounded in run(), so that --json can still print its outcome object
+        default=None,
+        help=f"local worker processes for sweep and reanalyse, 1 to {max_jobs()} (default 1)",
+    )
+    add_compute_options(p)
     p.add_argument("--json", action="store_true", help="print the outcome as one JSON object (last line)")
     p.add_argument("--report", action="store_true", help="write the session's report and print where")
     add_record_options(p)
@@ -116,16 +125,36 @@ class _Progress:
             self._bar.close()
 
 
+def failed_outcome(
+    kind: str | None, session_id: str | None, error: str, results: dict[str, Any] | None = None
+) -> str:
+    """``--json``'s last line when the session could not run or its outcome could not be recorded:
+    the outcome object with state ``failed`` and the error (``id`` null when no session was made)."""
+    doc = {"id": session_id, "kind": kind, "state": "failed", "results": results or {}, "error": error}
+    return json.dumps(doc, default=str)
+
+
 def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
+    def usage(message: str) -> None:
+        if args.json:
+            print(failed_outcome(args.kind, args.resume, message))
+        parser.error(message)
+
     if (args.kind is None) == (args.resume is None):
-        parser.error("give a session kind, or --resume ID (not both)")
-    if args.jobs < 1:
-        parser.error(f"--jobs must be at least 1, got {args.jobs}")
-    params = parse_params(parser, args.param)
+        usage("give a session kind, or --resume ID (not both)")
+    if args.jobs is not None and not 1 <= args.jobs <= max_jobs():
+        usage(f"--jobs must be from 1 to {max_jobs()}, got {args.jobs}")
+    try:
+        compute = compute_spec(parser, args, jobs=1)
+        params = parse_params(parser, args.param)
+    except SystemExit:
+        if args.json:
+            print(failed_outcome(args.kind, args.resume, "a usage error (see above)"))
+        raise
     try:
         assignments = dict(parse_assignments(args.assignments))
     except ValueError as exc:
-        parser.error(str(exc))
+        usage(str(exc))
     progress = _Progress()
     runners: list[SessionRunner] = []
     signals: dict[int, int] = {signal.SIGINT: 130, signal.SIGTERM: 143}
@@ -151,7 +180,8 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
                     data=args.data,
                     database=args.database,
                     resume=args.resume,
-                    jobs=args.jobs,
+                    jobs=args.jobs or 1,
+                    compute=compute,
                     on_event=progress,
                     on_runner=runners.append,
                 )
@@ -175,10 +205,20 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     if error_box:
         progress.close()
         failure = error_box[0]
+        if args.json:  # whatever failed, the last line is the outcome object (issue 18)
+            runner = runners[-1] if runners else None
+            print(
+                failed_outcome(
+                    args.kind or (runner.plan.name if runner is not None else None),
+                    (runner.session_id if runner is not None else None) or args.resume,
+                    str(failure) or type(failure).__name__,
+                    runner.results if runner is not None else None,
+                )
+            )
         if isinstance(failure, PlanError | ConfigurationError | ScaleCalibrationError):
             print(f"station run: {failure}", file=sys.stderr)
             return 2
-        if isinstance(failure, SessionLockError | SessionError | RecordError | DeviceError):
+        if isinstance(failure, SessionLockError | SessionError | RecordError | DeviceError | OSError):
             print(f"station run: {failure}", file=sys.stderr)
             return signals[received[0]] if received else 1
         raise failure
@@ -198,6 +238,8 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         print(f"session {outcome.id} ({outcome.kind}): {outcome.state}")
         if outcome.error:
             print(f"  {outcome.error}")
+        if outcome.state in ("failed", "aborted", "stopped", "interrupted"):
+            print(f"  continue it after its last completed step: station run --resume {outcome.id}")
         print(summary(outcome.kind, outcome.results))
     if received:
         return signals[received[0]]
@@ -210,22 +252,44 @@ def summary(kind: str, results: dict[str, Any]) -> str:
         return "  no results"
     if kind == "reanalyse":
         return summary(results.get("kind", ""), results.get(results.get("kind", ""), {}))
+    return "\n".join(filter(None, [_kind_summary(kind, results), _checks_summary(results)]))
+
+
+def _um(v: Any, unit: str = "um") -> str:
+    return "-" if v is None else f"{v:.3f} {unit}"
+
+
+def _checks_summary(results: dict[str, Any]) -> str:
+    """The checks that did not pass (a failed ``fail`` check failed the session)."""
+    bad = [c for c in results.get("checks", []) if not c.get("passed")]
+    lines = [
+        f"  check {c['name']} {'FAILED' if c['severity'] == 'fail' else 'warning'}: {c['message']}"
+        for c in bad
+    ]
+    return "\n".join(lines)
+
+
+def _kind_summary(kind: str, results: dict[str, Any]) -> str:
     if kind == "validation":
+        width = results.get("groove_width_mm")
         return (
-            f"  raw (rigid) error mean {results['mean_um']:.3f} um, max {results['max_um']:.3f} um; "
-            f"parallelogram mean {results['parallelogram_mean_um']:.3f} um, "
-            f"max {results['parallelogram_max_um']:.3f} um\n"
-            f"  scale {results['scale']:.6f}: groove width {results['groove_width_mm']:.5f} mm "
-            f"(u {results.get('groove_width_u_mm', float('nan')):.5f} mm)"
+            f"  raw (rigid) error mean {_um(results['mean_um'])}, max {_um(results['max_um'])}; "
+            f"parallelogram mean {_um(results.get('parallelogram_mean_um'))}, "
+            f"max {_um(results.get('parallelogram_max_um'))}\n"
+            f"  scale {results['scale']:.6f}: groove width {_um(width, 'mm')} "
+            f"(u {_um(results.get('groove_width_u_mm'), 'mm')}); {results.get('n_positions')} positions"
+            + (" (partial)" if results.get("partial") else "")
         )
     if kind == "repeatability":
-        lines = [f"  RP (mm) after {results['n_cycles']} cycles:"]
+        lines = [f"  RP (mm), {results['n_cycles']} cycles planned per test:"]
         for test, e in results["tests"].items():
+            n = e.get("n_cycles")
+            count = f"N {n}" + (f" of {e.get('planned_cycles')}, partial" if e.get("partial") else "")
             if "rp_mm" in e:
                 lo, hi = e["rp_ci95_mm"]
-                lines.append(f"    {test:>4}  RP {e['rp_mm']:.5f}  (95 % {lo:.5f}-{hi:.5f})")
+                lines.append(f"    {test:>4}  RP {e['rp_mm']:.5f}  (95 % {lo:.5f}-{hi:.5f})  {count}")
             else:
-                lines.append(f"    {test:>4}  {e.get('error')}")
+                lines.append(f"    {test:>4}  {e.get('error')}  {count if n is not None else ''}".rstrip())
         return "\n".join(lines)
     if kind == "sweep":
         return f"  {len(results['trials'])} trials; best: trial {results['best']}"

@@ -1,15 +1,30 @@
-"""``station sessions``, ``station report ID``, ``station export ID OUT``, ``station import DIR``."""
+"""``station sessions``, ``station report ID``, ``station export ID OUT``, ``station import DIR|ZIP``.
+
+``sessions``, ``report`` and ``export`` only read the record: it is opened read-only (never created,
+migrated, locked or written; they work on a full disk and in a read-only data directory). ``report``
+writes the report's files, and only those: into the session's report folder (``DATA/reports/ID``,
+where the service keeps it too) or into ``--out DIR``. ``import`` takes an export folder or a zip of
+one, through the record's one import path (the service's ``POST /api/v1/sessions/import`` too).
+"""
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from station.commands import SubParsers
 from station.commands.run import add_record_options
-from station.record import Record, RecordError, SessionRow, lock_holder
+from station.record import (
+    ImportRefusedError,
+    NoRecordError,
+    Record,
+    RecordError,
+    SessionRow,
+    station_in_use,
+)
 from station.reporting import ReportError
 from station.resources import SessionSummary, dumps
 from station.session import open_record
@@ -48,35 +63,48 @@ def register(sub: SubParsers) -> None:
     add_record_options(e)
     e.set_defaults(func=run_export)
 
-    i = sub.add_parser("import", help="import a session folder written by station export")
-    i.add_argument("folder", metavar="DIR")
+    i = sub.add_parser(
+        "import",
+        help="import a session folder written by station export (or a zip of one, e.g. export.zip)",
+    )
+    i.add_argument("folder", metavar="DIR|ZIP")
     add_record_options(i)
     i.set_defaults(func=run_import)
 
 
-def _open(args: argparse.Namespace) -> Record:
-    return open_record(args.data, args.database)
+def _open(args: argparse.Namespace, *, read_only: bool = False) -> Record:
+    return open_record(args.data, args.database, read_only=read_only)
 
 
-def _reconciled(record: Record) -> None:
-    """Sessions left active by a dead process show as interrupted (only when no runner holds the lock)."""
-    from station.record import SessionLockError, station_lock
-    from station.runner import reconcile
+def shown_sessions(record: Record, *, own_record: bool) -> list[SessionRow]:
+    """The record's sessions, newest first, as they stand: on a station's own record (SQLite in its
+    data directory), a session left active while no process holds or is finishing on the station was
+    left by a dead process and shows ``interrupted`` (as the next session start will record it). Reads
+    only: nothing is written and no lock is taken (a session may start meanwhile)."""
+    from station.runner import ACTIVE_STATES
 
-    if lock_holder(Path(record.data_dir)) is not None:
-        return
-    try:
-        with station_lock(Path(record.data_dir), "station sessions"):
-            reconcile(record)
-    except SessionLockError:
-        return
+    rows = record.list_sessions()
+    if not own_record or not any(r.state in ACTIVE_STATES for r in rows):
+        return rows
+    if station_in_use(Path(record.data_dir)):
+        return rows
+    out = []
+    for r in rows:
+        if r.state in ACTIVE_STATES:
+            r = record.get_session(r.id)  # read after the lock: one that has just ended says so now
+            if r.state in ACTIVE_STATES:
+                r = dataclasses.replace(r, state="interrupted")
+        out.append(r)
+    return out
 
 
 def run_sessions(args: argparse.Namespace) -> int:
     try:
-        with _open(args) as record:
-            _reconciled(record)
-            rows = record.list_sessions()
+        with _open(args, read_only=True) as record:
+            rows = shown_sessions(record, own_record=args.database is None)
+    except NoRecordError as exc:
+        print(f"station sessions: {exc}", file=sys.stderr)
+        rows = []
     except RecordError as exc:
         print(f"station sessions: {exc}", file=sys.stderr)
         return 1
@@ -105,13 +133,19 @@ def report_document(row: SessionRow) -> dict[str, Any]:
 def write_session_report(
     session: str, data: str | Path | None, database: str | None, out: str | Path | None = None
 ) -> ReportFiles:
-    """Write session ``session``'s report (default folder: DATA/reports/ID)."""
+    """Write session ``session``'s report into ``out``, else its report folder (``DATA/reports/ID``).
+    The record is only read."""
     from station.reporting import write_report
 
-    with open_record(data, database) as record:
+    with open_record(data, database, read_only=True) as record:
         row = record.get_session(session)
         folder = Path(out) if out else Path(record.data_dir) / "reports" / row.id
-        return write_report(report_document(row), folder)
+        try:
+            return write_report(report_document(row), folder)
+        except ReportError as exc:
+            if out:
+                raise
+            raise ReportError(f"{exc}; give --out DIR to write the report elsewhere") from exc
 
 
 def run_report(args: argparse.Namespace) -> int:
@@ -131,7 +165,7 @@ def run_report(args: argparse.Namespace) -> int:
 
 def run_export(args: argparse.Namespace) -> int:
     try:
-        with _open(args) as record:
+        with _open(args, read_only=True) as record:
             out = record.export_session(record.get_session(args.session).id, Path(args.out))
     except (RecordError, OSError) as exc:
         print(f"station export: {exc}", file=sys.stderr)
@@ -141,9 +175,16 @@ def run_export(args: argparse.Namespace) -> int:
 
 
 def run_import(args: argparse.Namespace) -> int:
+    source = Path(args.folder)
+    if not source.exists():
+        print(f"station import: {source}: no such folder or zip file", file=sys.stderr)
+        return 2
     try:
         with _open(args) as record:
-            row = record.import_session(Path(args.folder))
+            row = record.import_path(source)
+    except ImportRefusedError as exc:
+        print(f"station import: refused: {exc}", file=sys.stderr)
+        return 1
     except (RecordError, OSError) as exc:
         print(f"station import: {exc}", file=sys.stderr)
         return 1

@@ -9,7 +9,22 @@ A plan is a typed, validated parameter model plus three functions (see :class:`P
   resuming a session after a crash (skip the steps recorded as done).
 * ``resume_prelude(params, ctx, next_step)`` gives the steps to run before resuming at ``next_step``
   (e.g. return to the reference pose and capture the reference again).
-* ``analyse(params, ctx, captures)`` turns the session's measured captures into its results.
+* ``analyse(params, ctx, captures)`` turns the session's measured captures into its results, with its
+  gates' verdicts in ``results["checks"]`` (``station.plans._gates``): a result that fails a ``fail``
+  check ends the session ``failed``.
+* ``reference_pose(params, ctx)`` says where a session of the plan starts (:class:`ReferencePose`): the
+  runner makes the arm's route there from wherever it is the session's first motion
+  (:mod:`station.arm_route`; checked in pre-flight from the arm's commanded position), or, for a plan
+  that must not move the arm, refuses at pre-flight when it is not there. Steps and resume preludes
+  start from that pose.
+
+Two optional methods:
+
+* ``resume_from(params, ctx, steps, next_step) -> (index, reason)``: the plan's resume rule, the first
+  step a resume runs again (done or not), so that a population is never made of two runs (repeatability
+  reruns the interrupted test from its start). Without it a resume continues at ``next_step``.
+* ``check_progress(params, ctx, captures)``: live gates, called once each step is stored and measured;
+  it raises ``GateError`` to stop the session at once when what was measured cannot be right.
 
 Offline plans (``sweep``, ``reanalyse``) have no device actions: their steps carry a :class:`Compute`.
 Plans never touch a concrete driver; the runner executes the actions (architecture: plans and the
@@ -27,6 +42,7 @@ from pydantic import BaseModel
 from station._pydantic import problems as describe
 
 if TYPE_CHECKING:
+    from station.compute import MeasureBackend
     from station.plans.calibration import CalibrationCell
     from station.record import Record
     from station.vision import MeasureParams
@@ -175,7 +191,10 @@ class PlanContext:
     ``camera_height_mm``: height of the camera's front above the artifact plane for given joints, when
     the robot's configuration says where both are (used to choose move directions away from the
     artifact). ``measure_params``: the session's measurement parameters. ``record``: the record (offline
-    plans read stored sessions from it). ``jobs``: worker processes for offline plans.
+    plans read stored sessions from it). ``jobs``: worker processes for offline plans when no
+    ``compute`` backend is given. ``compute``: where offline plans measure (the local pool, a Dask
+    cluster; see ``station.compute``). ``cancelled``: true once the session is being aborted, for
+    long computations to poll (a backend then cancels its tasks).
     """
 
     measure_params: MeasureParams
@@ -185,6 +204,19 @@ class PlanContext:
     session_id: str | None = None
     jobs: int = 1
     calibration: CalibrationCell | None = None
+    compute: MeasureBackend | None = None
+    cancelled: Callable[[], bool] = field(default=lambda: False)
+
+
+@dataclass(frozen=True)
+class ReferencePose:
+    """Where a plan's sessions start (six joint angles, deg). ``route``: the runner takes the arm there
+    from wherever it is before the first step (and before a resume's prelude); ``False``: the plan never
+    moves the arm (a validation: the operator's hands are at the table under it) and pre-flight refuses
+    when the arm is not there."""
+
+    joints_deg: tuple[float, ...]
+    route: bool = True
 
 
 class PlanError(ValueError):
@@ -209,6 +241,9 @@ class Plan(Protocol):
     def resume_prelude(self, params: Any, ctx: PlanContext, next_step: Step) -> list[Step]: ...
 
     def analyse(self, params: Any, ctx: PlanContext, captures: Sequence[CaptureResult]) -> dict[str, Any]: ...
+
+    def reference_pose(self, params: Any, ctx: PlanContext) -> ReferencePose | None:
+        """Where its sessions start (None: anywhere, the plan does not need the arm)."""
 
 
 def get_plan(name: str) -> Plan:
@@ -254,6 +289,7 @@ __all__ = [
     "Plan",
     "PlanContext",
     "PlanError",
+    "ReferencePose",
     "SetSpeed",
     "Settle",
     "Step",

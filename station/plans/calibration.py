@@ -35,6 +35,7 @@ import numpy as np
 import numpy.typing as npt
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from station.arm_route import quantised, split_move, travel
 from station.kinematics import Kinematics, KinematicsError, rot_z, transform
 from station.plans import (
     Align,
@@ -47,18 +48,17 @@ from station.plans import (
     MoveOffset,
     PlanContext,
     PlanError,
+    ReferencePose,
     SetSpeed,
     Settle,
     Step,
 )
+from station.plans._calibration_gates import calibration_checks
 
 if TYPE_CHECKING:
     from station.vision import MeasureParams
 
 FloatArray = npt.NDArray[np.float64]
-
-JOINT_DECIMALS = 3
-"""The C500C's joint resolution in its commands and position reports (0.001 deg)."""
 
 LIMIT_MARGIN_DEG = 2.5
 """How far inside its limits every joint of a planned pose stays: room for the measured corrections."""
@@ -193,12 +193,6 @@ class Configuration:
     camera_pose: FloatArray
 
 
-def quantised(q: npt.ArrayLike) -> tuple[float, ...]:
-    """Joint angles rounded to the controller's resolution (0.001 deg): what it can be commanded to, so
-    that a sequence of relative moves lands exactly on the target."""
-    return tuple(round(float(a), JOINT_DECIMALS) for a in np.asarray(q, dtype=float))
-
-
 def square_on(normal: npt.ArrayLike) -> FloatArray:
     """The smallest rotation taking the base's +z to ``normal`` (an artifact's upward normal): the camera
     square to that artifact looks along ``-normal`` with ``square_on(normal) @ LOOK_DOWN``."""
@@ -226,30 +220,6 @@ def unwrap_near(q: npt.ArrayLike, seed: npt.ArrayLike, limits: FloatArray) -> tu
                 best = alt
         out.append(best)
     return tuple(out)
-
-
-def split_move(start: Sequence[float], end: Sequence[float], max_step_deg: float) -> list[tuple[float, ...]]:
-    """Waypoints from ``start`` (excluded) to ``end`` (included), no joint moving more than ``max_step_deg``
-    between two of them, at the controller's resolution."""
-    from station.calibration import joint_steps  # scipy behind it: not at the plans' import
-
-    return [quantised(q) for q in joint_steps(start, end, max_step_deg=max_step_deg)]
-
-
-def travel(start: Sequence[float], end: Sequence[float], max_step_deg: float) -> list[tuple[float, ...]]:
-    """Waypoints from one configuration to another through the lift poses (up, across, down): the camera
-    stays high above every artifact between them."""
-    up_from, up_to = lift_pose(start), lift_pose(end)
-    return [
-        *split_move(start, up_from, max_step_deg),
-        *split_move(up_from, up_to, max_step_deg),
-        *split_move(up_to, end, max_step_deg),
-    ]
-
-
-def lift_pose(q: Sequence[float]) -> tuple[float, ...]:
-    """Upper arm and forearm upright, the other joints where they are: the camera high above the cell."""
-    return (float(q[0]), 0.0, 0.0, float(q[3]), float(q[4]), float(q[5]))
 
 
 def _cell(ctx: PlanContext) -> CalibrationCell:
@@ -434,9 +404,24 @@ class CalibrationPlan:
 
         return correct
 
+    def reference_pose(self, params: CalibrationParams, ctx: PlanContext) -> ReferencePose | None:
+        """The station's reference pose: the first configuration's travel starts there."""
+        ref = ctx.reference_joints_deg or (ctx.calibration.reference_joints_deg if ctx.calibration else None)
+        return None if ref is None else ReferencePose(tuple(float(a) for a in ref))
+
     def resume_prelude(self, params: CalibrationParams, ctx: PlanContext, next_step: Step) -> list[Step]:
-        """Nothing: each configuration's step begins with its own travel (lift, swing, descend)."""
-        return []
+        """From the reference pose (where the session's route brought the arm) to where ``next_step``'s
+        travel starts: the previous configuration's planned pose, through the lift poses."""
+        ref = self.reference_pose(params, ctx)
+        index = int(next_step.meta.get("configuration", 0))
+        if ref is None or index == 0:
+            return []
+        cell = _cell(ctx)
+        previous = self.configurations(params, cell)[index - 1]
+        moves = travel(ref.joints_deg, previous.joints_deg, cell.max_step_deg * 0.9)
+        meta = {"role": "resume", "configuration": previous.index}
+        name = f"resume: to configuration {previous.index}'s pose"
+        return [Step(-1, name, (SetSpeed(params.speed_pct), *(MoveJoints(q) for q in moves)), meta)]
 
     # ---------------------------------------------------------------- analysis
 
@@ -445,7 +430,9 @@ class CalibrationPlan:
     ) -> dict[str, Any]:
         from station.calibration_session import analyse_calibration
 
-        return analyse_calibration(params, _cell(ctx), captures)
+        results = analyse_calibration(params, _cell(ctx), captures)
+        results["checks"] = calibration_checks(results)
+        return results
 
 
 CALIBRATION = CalibrationPlan()

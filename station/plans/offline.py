@@ -2,25 +2,25 @@
 
 * ``sweep``: a stored validation session re-measured over a parameter grid (default: the seed's Table 1
   trials) with the ``station sweep`` core, one step per trial.
-* ``reanalyse``: any stored session measured again with other parameters or software, in a process
-  pool started with ``forkserver`` (never ``fork`` inside the threaded runner), then analysed as its
-  own kind. With the same parameters and software it reproduces the stored results bit for bit.
+* ``reanalyse``: any stored session measured again with other parameters or software, on the
+  session's compute backend (``station.compute``: the local pool by default, or a Dask cluster), then
+  analysed as its own kind. With the same parameters and software it reproduces the stored results
+  bit for bit, on any backend.
 """
 
 from __future__ import annotations
 
-import multiprocessing
+import contextlib
 from collections.abc import Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from station.batch import measure_file
+from station.compute import LocalBackend
 from station.imagesets import ImageSet
-from station.plans import CaptureResult, Compute, PlanContext, PlanError, Step
+from station.plans import CaptureResult, Compute, PlanContext, PlanError, ReferencePose, Step
 from station.sweep import grid, run_sweep, seed_trials
 from station.validation import CALIBRATIONS
 from station.vision import MeasureParams
@@ -34,13 +34,13 @@ def _record(ctx: PlanContext) -> Any:
     return ctx.record
 
 
-def measure_stored(paths: Sequence[Path], params: MeasureParams, jobs: int) -> list[dict[str, Any]]:
-    """Measure stored image files; ``station measure --json`` objects, in order."""
-    if jobs <= 1 or len(paths) < 4:
-        return [measure_file(p, params).to_json() for p in paths]
-    ctx = multiprocessing.get_context("forkserver")
-    with ProcessPoolExecutor(max_workers=min(jobs, len(paths)), mp_context=ctx) as pool:
-        return [r.to_json() for r in pool.map(measure_file, paths, [params] * len(paths))]
+def measure_stored(paths: Sequence[Path], params: MeasureParams, ctx: PlanContext) -> list[dict[str, Any]]:
+    """Measure stored image files on the session's backend (else a local pool of ``ctx.jobs``);
+    ``station measure --json`` objects, in order."""
+    if ctx.compute is not None:
+        return [r.to_json() for r in ctx.compute.measure(paths, params, cancelled=ctx.cancelled)]
+    with contextlib.closing(LocalBackend(ctx.jobs)) as local:
+        return [r.to_json() for r in local.measure(paths, params, cancelled=ctx.cancelled)]
 
 
 class SweepParams(BaseModel):
@@ -86,7 +86,12 @@ class SweepPlan:
             def run(c: PlanContext, change: dict[str, Any] = change, number: int = number) -> dict[str, Any]:
                 image_set = self.image_set(params, c)
                 trial = run_sweep(
-                    image_set, c.measure_params, [change], jobs=c.jobs, calibration=params.calibration
+                    image_set,
+                    c.measure_params,
+                    [change],
+                    jobs=c.jobs,
+                    backend=c.compute,
+                    calibration=params.calibration,
                 )[0]
                 trial_doc: dict[str, Any] = {"number": number, "overrides": change, "error": trial.error}
                 if trial.result is not None:
@@ -107,6 +112,9 @@ class SweepPlan:
 
     def resume_prelude(self, params: SweepParams, ctx: PlanContext, next_step: Step) -> list[Step]:
         return []
+
+    def reference_pose(self, params: SweepParams, ctx: PlanContext) -> ReferencePose | None:
+        return None  # no device
 
     def analyse(
         self, params: SweepParams, ctx: PlanContext, captures: Sequence[CaptureResult]
@@ -151,7 +159,7 @@ class ReanalysePlan:
                 by_id = {cap.id: cap for cap in rec.captures(src)}
                 chunk = [by_id[i] for i in ids]
                 paths = [Path(rec.data_dir) / cap.path for cap in chunk]
-                results = measure_stored(paths, c.measure_params, c.jobs)
+                results = measure_stored(paths, c.measure_params, c)
                 params_doc = c.measure_params.model_dump(mode="json")
                 software = _software()
                 ok = 0
@@ -165,6 +173,9 @@ class ReanalysePlan:
 
     def resume_prelude(self, params: ReanalyseParams, ctx: PlanContext, next_step: Step) -> list[Step]:
         return []
+
+    def reference_pose(self, params: ReanalyseParams, ctx: PlanContext) -> ReferencePose | None:
+        return None  # no device
 
     def analyse(
         self, params: ReanalyseParams, ctx: PlanContext, captures: Sequence[CaptureResult]
@@ -183,11 +194,11 @@ class ReanalysePlan:
             session_id=source.id,
             jobs=ctx.jobs,
         )
-        return {
-            "source_session": source.id,
-            "kind": source.kind,
-            source.kind: plan.analyse(source_params, sub, captures),
-        }
+        inner = plan.analyse(source_params, sub, captures)
+        out: dict[str, Any] = {"source_session": source.id, "kind": source.kind, source.kind: inner}
+        if "checks" in inner:
+            out["checks"] = inner["checks"]  # the source's gates judge the re-analysis too
+        return out
 
 
 def _software() -> str:

@@ -26,8 +26,19 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from station.devices import JOINT_COUNT
 from station.metrology import repeatability, rp_interval
-from station.plans import Capture, CaptureResult, MoveJoints, PlanContext, PlanError, SetSpeed, Settle, Step
+from station.plans import (
+    Capture,
+    CaptureResult,
+    MoveJoints,
+    PlanContext,
+    PlanError,
+    ReferencePose,
+    SetSpeed,
+    Settle,
+    Step,
+)
 from station.plans._analysis import failures, group_mean, measured, principal_point, series_positions_mm
+from station.plans._gates import Check, at_least, at_most, checks_json
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -35,6 +46,11 @@ FloatArray = npt.NDArray[np.float64]
 SEED_TABLE2_MM = {"J1": 0.01664, "J2": 0.01813, "J3": 0.02321, "J4": 0.01671, "J5": 0.05299, "J6": 0.01601}
 
 Joints6 = tuple[float, float, float, float, float, float]
+
+#: A test's reference capture farther than this from the session's first: the arm or the artifact moved.
+REFERENCE_LIMIT_MM = 0.5
+#: An RP at or above this is no arm's repeatability (the seed's worst joint: 0.053 mm).
+RP_LIMIT_MM = 1.0
 
 
 class RepeatabilityParams(BaseModel):
@@ -171,25 +187,53 @@ class RepeatabilityPlan:
         settle = (Settle(params.settle_s),) if params.settle_s else ()
         return (*settle, Capture(params.frames_per_capture, meta))
 
+    def reference_pose(self, params: RepeatabilityParams, ctx: PlanContext) -> ReferencePose | None:
+        """Every test starts and ends at the reference pose: the session's route goes there first."""
+        ref = params.reference_joints_deg or ctx.reference_joints_deg
+        return None if ref is None else ReferencePose(tuple(float(a) for a in ref))
+
+    def resume_from(
+        self, params: RepeatabilityParams, ctx: PlanContext, steps: Sequence[Step], next_step: Step
+    ) -> tuple[int, str]:
+        """A resume reruns the interrupted test from its start (its reference, warm-up and every cycle):
+        one test's cycles are never pooled across an interruption."""
+        test = next_step.meta.get("test")
+        first = min(s.index for s in steps if s.meta.get("test") == test)
+        return first, f"resumed: test {test} runs again from its start (reference, warm-up, every cycle)"
+
     def resume_prelude(self, params: RepeatabilityParams, ctx: PlanContext, next_step: Step) -> list[Step]:
-        """Back to the reference pose at the session's speed, and the reference captured again."""
-        ref = self._reference(params, ctx)
-        meta = {"role": "reference", "test": next_step.meta.get("test"), "resumed": True}
-        actions = (SetSpeed(params.speed_pct), MoveJoints(ref), *self._capture(params, meta))
-        return [Step(-1, f"resume: {next_step.meta.get('test')} reference", actions, meta)]
+        """The session's speed again (the test that runs next starts at the reference pose itself)."""
+        meta = {"role": "resume", "test": next_step.meta.get("test")}
+        return [Step(-1, "resume: speed", (SetSpeed(params.speed_pct),), meta)]
 
     def analyse(
         self, params: RepeatabilityParams, ctx: PlanContext, captures: Sequence[CaptureResult]
     ) -> dict[str, Any]:
         width = ctx.measure_params.groove_width_mm
         tests: dict[str, Any] = {}
+        checks: list[Check] = []
         excursions = dict(self._excursions(params, ctx))
+        populations = {test: population(captures, test) for test in test_names(params)}
+        first = _first_position(populations)
         for test in test_names(params):
-            mine = [c for c in measured(captures) if c.meta.get("test") == test]
+            pop = populations[test]
+            mine = [c for c in measured(pop) if c.meta.get("role") in ("reference", "cycle")]
             cycles = [c for c in mine if c.meta.get("role") == "cycle"]
-            if len({c.meta["cycle"] for c in cycles}) < 3:
+            n = len({c.meta["cycle"] for c in cycles})
+            checks += _test_checks(test, n, params.cycles, _position(mine), first)
+            common: dict[str, Any] = {
+                "n_cycles": n,
+                "planned_cycles": params.cycles,
+                "partial": n < params.cycles,
+                "failures": failures([c for c in pop if c.meta.get("role") in ("reference", "cycle")]),
+            }
+            left = excluded(captures, test, pop)
+            if left:
+                common["excluded_captures"] = left
+            if n < 3:
                 tests[test] = {
-                    "error": f"only {len(cycles)} cycle captures were measured; RP needs at least 3"
+                    "error": f"only {n} cycle captures were measured; RP needs at least 3",
+                    **common,
                 }
                 continue
             # The tool point: where the optical axis meets the artifact, relative to the crossing (RP is
@@ -200,6 +244,7 @@ class RepeatabilityPlan:
             keys, points = group_mean([c.meta["cycle"] for c in cycles], pos[np.array(is_cycle)])
             rep = repeatability(points)
             lo, hi = rp_interval(points)
+            checks.append(rp_check(test, rep.rp))
             entry: dict[str, Any] = {
                 "kind": "sequence" if test in params.sequences else "joint",
                 "points_mm": points.tolist(),
@@ -209,8 +254,7 @@ class RepeatabilityPlan:
                 "s_l_mm": rep.s_l,
                 "rp_mm": rep.rp,
                 "rp_ci95_mm": [lo, hi],
-                "n_cycles": len(points),
-                "failures": failures([c for c in captures if c.meta.get("test") == test]),
+                **common,
             }
             entry.update(_rp3d(cycles, pos[np.array(is_cycle)]))
             if test in params.sequences:
@@ -224,17 +268,110 @@ class RepeatabilityPlan:
                 entry["away_deg"] = away
             tests[test] = entry
         out: dict[str, Any] = {
-            "rp_mm": {t: e["rp_mm"] for t, e in tests.items() if "rp_mm" in e},
+            # the headline holds whole tests only: a partial test's RP is in its own entry
+            "rp_mm": {t: e["rp_mm"] for t, e in tests.items() if "rp_mm" in e and not e["partial"]},
             "n_cycles": params.cycles,
             "tests": tests,
             "speed_pct": params.speed_pct,
             "load_kg": params.load_kg,
             "seed_table2_mm": SEED_TABLE2_MM,
+            "partial": any(e["partial"] for e in tests.values()),
+            "checks": checks_json(checks),
         }
-        rp3d = {t: e["rp3d_mm"] for t, e in tests.items() if "rp3d_mm" in e}
+        rp3d = {t: e["rp3d_mm"] for t, e in tests.items() if "rp3d_mm" in e and not e["partial"]}
         if rp3d:
             out["rp3d_mm"] = rp3d
         return out
+
+
+def _run(c: CaptureResult) -> int:
+    return int(c.meta.get("run", 0))
+
+
+def population(captures: Sequence[CaptureResult], test: str) -> list[CaptureResult]:
+    """The captures of ``test``'s latest run: a resume reruns a test from its start, so its latest run
+    holds its reference and cycles; captures of earlier runs are never pooled with them."""
+    mine = [c for c in captures if c.meta.get("test") == test]
+    if not mine:
+        return []
+    latest = max(_run(c) for c in mine)
+    return [c for c in mine if _run(c) == latest]
+
+
+def excluded(captures: Sequence[CaptureResult], test: str, pop: Sequence[CaptureResult]) -> list[int]:
+    """Capture ids of ``test`` left out because they belong to an earlier run than its population."""
+    used = {c.capture_id for c in pop}
+    return [c.capture_id for c in captures if c.meta.get("test") == test and c.capture_id not in used]
+
+
+def _position(captures: Sequence[CaptureResult]) -> tuple[float, float] | None:
+    """Where a test saw the crossing first (mm, the measurement's ``center_mm``): its reference capture,
+    else its first measured cycle."""
+    for c in captures:
+        m = c.measurement
+        if m is not None and m.get("center_mm") is not None:
+            x, y = m["center_mm"]
+            return float(x), float(y)
+    return None
+
+
+def _first_position(populations: dict[str, list[CaptureResult]]) -> tuple[float, float] | None:
+    """The session's first reference position: the earliest step's measured reference-or-cycle capture."""
+    caps = [
+        c
+        for pop in populations.values()
+        for c in measured(pop)
+        if c.meta.get("role") in ("reference", "cycle")
+    ]
+    caps.sort(key=lambda c: (c.step_index, c.frame_index))
+    return _position(caps)
+
+
+def _test_checks(
+    test: str,
+    n: int,
+    planned: int,
+    here: tuple[float, float] | None,
+    first: tuple[float, float] | None,
+) -> list[Check]:
+    out = [
+        at_least(
+            f"cycles:{test}",
+            n,
+            planned,
+            severity="warn",
+            ok=f"{test}: all {{value}} planned cycles measured",
+            bad=f"{test} is partial: {{value}} of {{limit}} cycles measured; its RP is its own, not in rp_mm",
+        )
+    ]
+    offset = None
+    if here is not None and first is not None:
+        offset = math.hypot(here[0] - first[0], here[1] - first[1])
+    out.append(
+        at_most(
+            f"reference:{test}",
+            offset,
+            REFERENCE_LIMIT_MM,
+            severity="fail",
+            ok=f"{test}: the reference capture is {{value}} mm from the session's first",
+            bad=f"{test}: the reference capture is {{value}} mm from the session's first "
+            "(limit {limit} mm): the arm or the artifact moved; check the artifact's mounting and the "
+            "reference pose, then start a new session",
+        )
+    )
+    return out
+
+
+def rp_check(test: str, rp_mm: float) -> Check:
+    return at_most(
+        f"rp:{test}",
+        rp_mm,
+        RP_LIMIT_MM,
+        severity="fail",
+        ok=f"{test}: RP {{value}} mm is physically possible (below {{limit}} mm)",
+        bad=f"{test}: RP {{value}} mm is not an arm's repeatability (limit {{limit}} mm): the camera lost "
+        "the artifact or it moved during the test; check the artifact and the captures, then start again",
+    )
 
 
 def _rp3d(cycles: Sequence[CaptureResult], xy_mm: FloatArray) -> dict[str, Any]:

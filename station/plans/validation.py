@@ -19,10 +19,31 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from station.metrology import compare_displacements, scale_uncertainty
+from station.metrology import fit_affine, fit_rigid, scale_uncertainty
 from station.patterns import STEP_UM, STEPS_PER_SIDE, validation_pattern_um
-from station.plans import Capture, CaptureResult, MoveTable, PlanContext, PlanError, Settle, Step
+from station.plans import (
+    Capture,
+    CaptureResult,
+    MoveTable,
+    PlanContext,
+    PlanError,
+    ReferencePose,
+    Settle,
+    Step,
+)
 from station.plans._analysis import failures, group_mean, measured, series_positions_mm
+from station.plans._gates import checks_json
+from station.plans._validation_gates import (
+    GROOVE_BAND_MM,
+    RIGID_LIMITS_UM,
+    groove_check,
+    live_resume,
+    live_table_moves,
+    positions_check,
+    resume_check,
+    rigid_checks,
+    table_moves_check,
+)
 
 
 class ValidationParams(BaseModel):
@@ -43,6 +64,24 @@ class ValidationParams(BaseModel):
     approach_um: float = Field(25.4, gt=0, le=1000, description="overshoot before a backwards approach")
     settle_s: float = Field(0.0, ge=0, le=600)
     prompt_timeout_s: float | None = Field(None, gt=0, description="operator answer timeout (None: wait)")
+    mean_limit_um: float | None = Field(
+        None, gt=0, le=10_000, description="rigid fit's mean error limit (um); default 2 precise, 20 paper"
+    )
+    max_limit_um: float | None = Field(
+        None, gt=0, le=10_000, description="rigid fit's max error limit (um); default 6 precise, 50 paper"
+    )
+    groove_width_band_mm: tuple[float, float] = Field(
+        GROOVE_BAND_MM,
+        description="the artifact's groove width tolerance band (mm); default 1/32 in +0/-0.002 in",
+    )
+
+    @field_validator("groove_width_band_mm")
+    @classmethod
+    def _band(cls, v: tuple[float, float]) -> tuple[float, float]:
+        lo, hi = v
+        if not (math.isfinite(lo) and math.isfinite(hi) and 0.05 <= lo <= hi <= 50.0):
+            raise ValueError(f"the band must be [low, high] mm with 0.05 <= low <= high <= 50, got {list(v)}")
+        return v
 
     @field_validator("pattern_um")
     @classmethod
@@ -83,10 +122,34 @@ class ValidationPlan:
             yield Step(i, f"position {i}", tuple(actions), meta)
             last = (x, y)
 
+    def reference_pose(self, params: ValidationParams, ctx: PlanContext) -> ReferencePose | None:
+        """The arm at the station's reference pose, over the table's artifact; never moved by a validation
+        (the operator's hands are at the micrometers under it): pre-flight refuses it anywhere else."""
+        ref = ctx.reference_joints_deg
+        return None if ref is None else ReferencePose(tuple(float(a) for a in ref), route=False)
+
     def resume_prelude(self, params: ValidationParams, ctx: PlanContext, next_step: Step) -> list[Step]:
-        # Table positions are absolute micrometer readings: nothing to re-establish. The first step after
-        # a resume is approached from below (same-direction) because its predecessor is unknown.
-        return []
+        """The last confirmed position captured again (approached from below, backlash taken out): the
+        session continues only if it measures where it did before the interruption (``check_progress``).
+        """
+        if next_step.index == 0:
+            return []
+        last = list(self.steps(params, ctx))[next_step.index - 1]
+        x, y = last.meta["table_mm"]
+        a = params.approach_um / 1000.0
+        actions: list[Any] = [MoveTable(x - a, y - a, overshoot=True), MoveTable(x, y)]
+        if params.settle_s:
+            actions.append(Settle(params.settle_s))
+        meta = {**last.meta, "role": "resume_check"}
+        actions.append(Capture(params.frames_per_position, meta))
+        return [Step(-1, f"resume: {last.name} again", tuple(actions), meta)]
+
+    def check_progress(
+        self, params: ValidationParams, ctx: PlanContext, captures: Sequence[CaptureResult]
+    ) -> None:
+        """Live gates: a resume's re-capture must match, and the image must follow the table."""
+        live_resume(captures)
+        live_table_moves(captures)
 
     def analyse(
         self, params: ValidationParams, ctx: PlanContext, captures: Sequence[CaptureResult]
@@ -104,40 +167,58 @@ class ValidationPlan:
         )
         commanded = commanded - commanded[0]
         measured_um = (mean_mm - mean_mm[0]) * 1000.0
-        comp = compare_displacements(commanded, measured_um)
-        rigid_res = comp.measured_um - (comp.commanded_um @ comp.rigid.A.T + comp.rigid.t)
-        affine_res = comp.measured_um - (comp.commanded_um @ comp.affine.A.T + comp.affine.t)
-        scale = comp.similarity.scale
-        u_scale = scale_uncertainty(commanded, comp.similarity)
-        width_est = width / scale
+        rigid = fit_rigid(commanded, measured_um)
+        similarity = fit_rigid(commanded, measured_um, with_scale=True)
+        # a pattern cut short along one side (a session stopped early) has no parallelogram fit
+        affine = fit_affine(commanded, measured_um) if np.linalg.matrix_rank(commanded) >= 2 else None
+        rigid_res = measured_um - (commanded @ rigid.A.T + rigid.t)
+        affine_res = None if affine is None else measured_um - (commanded @ affine.A.T + affine.t)
+        scale = similarity.scale
+        u_scale = scale_uncertainty(commanded, similarity)
+        seen = scale > 1e-9 and math.isfinite(scale)  # a table whose moves the image does not show: none
+        width_est = width / scale if seen else math.nan
         results: dict[str, Any] = {
-            "mean_um": comp.rigid.mean,
-            "max_um": comp.rigid.max,
-            "parallelogram_mean_um": comp.affine.mean,
-            "parallelogram_max_um": comp.affine.max,
+            "mean_um": rigid.mean,
+            "max_um": rigid.max,
+            "parallelogram_mean_um": None if affine is None else affine.mean,
+            "parallelogram_max_um": None if affine is None else affine.max,
             "scale": scale,
             "groove_width_mm": width_est,
-            "groove_width_u_mm": width * u_scale / scale**2,
+            "groove_width_u_mm": width * u_scale / scale**2 if seen else math.nan,
             "groove_width_used_mm": width,
-            "rigid": comp.rigid.summary_um(),
-            "similarity": comp.similarity.summary_um(),
-            "affine": comp.affine.summary_um(),
+            "rigid": rigid.summary_um(),
+            "similarity": similarity.summary_um(),
+            "affine": None if affine is None else affine.summary_um(),
             "positions": [
                 {
                     "index": int(k),
                     "commanded_um": [float(v) for v in commanded[j]],
                     "measured_um": [float(v) for v in measured_um[j]],
                     "error_um": [float(v) for v in rigid_res[j]],
-                    "error_parallelogram_um": [float(v) for v in affine_res[j]],
+                    "error_parallelogram_um": None
+                    if affine_res is None
+                    else [float(v) for v in affine_res[j]],
                 }
                 for j, k in enumerate(keys)
             ],
             "approach": params.approach,
             "n_positions": len(keys),
+            "partial": len(keys) < len(params.positions_um()),
             "failures": failures([c for c in captures if c.meta.get("role") == "position"]),
             "scale_calibration": None,
         }
-        if params.approach == "same-direction" and ctx.session_id is not None:
+        mode = ctx.measure_params.mode
+        default_mean, default_max = RIGID_LIMITS_UM[mode]
+        limits = (params.mean_limit_um or default_mean, params.max_limit_um or default_max)
+        gates = [
+            table_moves_check(commanded, measured_um, keys),
+            groove_check(width_est, results["groove_width_u_mm"], params.groove_width_band_mm),
+            *rigid_checks(rigid.mean, rigid.max, limits, mode),
+            positions_check(len(keys), len(params.positions_um())),
+            resume_check(captures),
+        ]
+        results["checks"] = checks_json([g for g in gates if g is not None])
+        if params.approach == "same-direction" and ctx.session_id is not None and seen:
             results["scale_calibration"] = {
                 "groove_width_mm": width_est,
                 "u_mm": results["groove_width_u_mm"],

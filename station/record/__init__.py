@@ -7,27 +7,44 @@ Images are lossless PNG files beside the database, written atomically before the
 ``station_lock`` keeps one session at a time per station, across processes.
 """
 
-from station.record._errors import RecordError, RecordNotFoundError, RecordWriteError, SessionLockError
+from station.record._errors import (
+    ArchiveRefusedError,
+    ImportRefusedError,
+    NoRecordError,
+    RecordError,
+    RecordNotFoundError,
+    RecordWriteError,
+    SessionLockError,
+)
+from station.record._format import capture_path
 from station.record._json import MAX_POINTS, params_hash, strip_point_arrays
-from station.record._lock import lock_holder, station_lock
-from station.record._record import Record, capture_path
-from station.record._rows import CaptureRow, EventRow, MeasurementRow, SessionRow, StepRow
+from station.record._lock import StationLock, lock_holder, station_in_use, station_lock
+from station.record._record import Record
+from station.record._rows import SESSION_STATES, CaptureRow, EventRow, MeasurementRow, SessionRow, StepRow
+from station.record._sources import ArchiveLimits
 
 __all__ = [
     "MAX_POINTS",
+    "SESSION_STATES",
+    "ArchiveLimits",
+    "ArchiveRefusedError",
     "CaptureRow",
     "EventRow",
+    "ImportRefusedError",
     "MeasurementRow",
+    "NoRecordError",
     "Record",
     "RecordError",
     "RecordNotFoundError",
     "RecordWriteError",
     "SessionLockError",
     "SessionRow",
+    "StationLock",
     "StepRow",
     "capture_path",
     "lock_holder",
     "params_hash",
+    "station_in_use",
     "station_lock",
     "strip_point_arrays",
 ]

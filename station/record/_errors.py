@@ -33,10 +33,48 @@ class SessionLockError(RecordError):
     """Another session holds the station: one session at a time per station."""
 
     def __init__(self, lock_path: str, holder: dict[str, object]) -> None:
+        if holder.get("pid") is None:  # the holder has not written its name yet
+            who = "another session is starting"
+        else:
+            who = (
+                f"session {holder.get('session_id')!r} runs in process {holder.get('pid')} on host "
+                f"{holder.get('host')!r}"
+            )
         super().__init__(
-            f"the station is busy: session {holder.get('session_id')!r} runs in process "
-            f"{holder.get('pid')} on host {holder.get('host')!r} (lock {lock_path}); wait for it to "
-            "finish or stop it first"
+            f"the station is busy: {who} (lock {lock_path}); wait for it to finish or stop it first"
         )
         self.lock_path = lock_path
         self.holder = holder
+
+
+class NoRecordError(RecordError):
+    """A read-only command found no record in the data directory: nothing was ever recorded there."""
+
+    def __init__(self, data_dir: object) -> None:
+        super().__init__(
+            f"no record in {data_dir}: nothing has been recorded there yet (check --data or $STATION_DATA)"
+        )
+        self.data_dir = data_dir
+
+
+IMPORT_HINT = (
+    "nothing was imported: import a folder or zip written by `station export` (or export.zip), unchanged"
+)
+
+
+class ImportRefusedError(RecordError):
+    """An export folder or archive is refused before anything is written; ``field`` names what is wrong."""
+
+    code = "import_refused"
+
+    def __init__(self, field: str, reason: str, hint: str = IMPORT_HINT) -> None:
+        text = f"{field}: {reason}; {hint}" if hint else f"{field}: {reason}"
+        super().__init__(" ".join(text.split()))  # one line, whatever the reason holds
+        self.field = field
+        self.reason = reason
+
+
+class ArchiveRefusedError(ImportRefusedError):
+    """The zip archive itself is refused (not a zip, a bad entry, over a cap)."""
+
+    code = "bad_archive"

@@ -4,18 +4,14 @@
 (``format``/``format_version`` say what it is). ``captures.csv`` and ``measurements.csv`` are the same
 rows flattened for a spreadsheet; ``images/<id>/...`` the PNG files, byte for byte.
 
-Import gives back the same session: same id, same row contents, same image bytes. The ids the
-database assigns (event, capture and measurement ids) are new in the importing record, since another
-record has its own; events keep their ``seq`` and order, measurements point at the imported captures.
-A measurement of another session's capture (a re-analysis) needs that session in the record first.
-Rows are streamed out; an import reads ``session.json`` whole (rows only, no images: a few MB).
+Import (``_import.py``) gives back the same session: same id, same row contents, same image bytes.
+The format is ``_format.py``'s model. Rows are streamed out; every image is checked against its
+sha256 on the way.
 """
 
 from __future__ import annotations
 
-import contextlib
 import csv
-import hashlib
 import json
 import os
 import shutil
@@ -29,24 +25,19 @@ import sqlalchemy as sa
 
 from station.record import _images
 from station.record._engine import head_revision
-from station.record._errors import RecordError, RecordNotFoundError
-from station.record._schema import captures, events, measurements, new_id, sessions, steps
+from station.record._errors import RecordError
+from station.record._format import FORMAT, FORMAT_VERSION, capture_file
+from station.record._protocol import RecordLike
+from station.record._schema import captures, events, measurements, steps
 
 if TYPE_CHECKING:
-    from station.record._record import Record
     from station.record._rows import SessionRow
 
-FORMAT = "station-session"
-FORMAT_VERSION = 1
 _BATCH = 500
 
 
 def _iso(value: datetime | None) -> str | None:
     return None if value is None else value.isoformat()
-
-
-def _time(value: str | None) -> datetime | None:
-    return None if value is None else datetime.fromisoformat(value)
 
 
 def _stream(conn: sa.Connection, query: sa.Select[Any]) -> Iterator[sa.Row[Any]]:
@@ -68,16 +59,11 @@ def _session_dict(s: SessionRow) -> dict[str, Any]:
 
 
 def _copy_image(src: Path, dst: Path, sha256: str) -> None:
-    data = src.read_bytes()
-    if hashlib.sha256(data).hexdigest() != sha256:
-        raise RecordError(
-            f"capture image {src} does not match its recorded sha256: restore the original before "
-            "exporting or importing"
-        )
+    data = _images.read_bytes_checked(src, sha256)
     _images.write_atomic(dst, data)
 
 
-def export_session(record: Record, session_id: str, out_dir: Path) -> Path:
+def export_session(record: RecordLike, session_id: str, out_dir: Path) -> Path:
     session = record.get_session(session_id)
     final = out_dir / session.id
     if final.exists():
@@ -94,7 +80,7 @@ def export_session(record: Record, session_id: str, out_dir: Path) -> Path:
     return final
 
 
-def _export_into(record: Record, session: SessionRow, work: Path) -> None:
+def _export_into(record: RecordLike, session: SessionRow, work: Path) -> None:
     sid = session.id
     step_q = sa.select(steps).where(steps.c.session_id == sid).order_by(steps.c.step_index)
     event_q = sa.select(events).where(events.c.session_id == sid).order_by(events.c.id)
@@ -197,7 +183,8 @@ def _write_captures_csv(
         for r in _stream(conn, query):
             d = _capture_dict(r)
             writer.writerow([json.dumps(d[c]) if c == "meta" else d[c] for c in CAPTURE_COLUMNS])
-            _copy_image(data_dir / r.path, work / r.path, r.sha256)
+            src = capture_file(data_dir, r.session_id, r.step_index, r.frame_index, r.path)
+            _copy_image(src, work / r.path, r.sha256)
 
 
 def _pair(value: Any, i: int) -> Any:
@@ -218,121 +205,3 @@ def _write_measurements_csv(conn: sa.Connection, query: sa.Select[Any], path: Pa
                     res.get("error"), res.get("code"), r.params_hash, r.software,
                 ]
             )  # fmt: skip
-
-
-def _load(folder: Path) -> dict[str, Any]:
-    path = folder / "session.json"
-    try:
-        with path.open(encoding="utf-8") as f:
-            doc = json.load(f)
-    except FileNotFoundError:
-        raise RecordError(f"{folder} is not an exported session: it has no session.json") from None
-    except (OSError, ValueError) as exc:
-        raise RecordError(f"cannot read {path}: {exc}") from exc
-    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-        raise RecordError(f"{path} is not a station session export (format {FORMAT!r} expected)")
-    if doc.get("format_version") != FORMAT_VERSION:
-        raise RecordError(
-            f"{path} has export format version {doc.get('format_version')}; this station reads "
-            f"version {FORMAT_VERSION}: update the station software"
-        )
-    return doc
-
-
-def import_session(record: Record, folder: Path) -> SessionRow:
-    doc = _load(folder)
-    s = doc["session"]
-    sid = s["id"]
-    with contextlib.suppress(RecordNotFoundError):
-        record.get_session(sid)
-        raise RecordError(
-            f"session {sid} is already in the record at {record.url}: importing it again would duplicate it"
-        )
-    written: list[Path] = []
-    try:
-        for c in doc["captures"]:
-            dst = record.data_dir / c["path"]
-            _copy_image(folder / c["path"], dst, c["sha256"])
-            written.append(dst)
-        _insert_rows(record, doc)
-    except BaseException:
-        for path in written:
-            path.unlink(missing_ok=True)
-        raise
-    return record.get_session(sid)
-
-
-def _insert_rows(record: Record, doc: dict[str, Any]) -> None:
-    s = doc["session"]
-    sid = s["id"]
-    with record._write() as conn:
-        conn.execute(
-            sessions.insert().values(
-                {**s, "created_at": _time(s["created_at"]), "updated_at": _time(s["updated_at"])}
-            )
-        )
-        step_rows = [
-            {
-                "session_id": sid,
-                "step_index": st["index"],
-                "name": st["name"],
-                "state": st["state"],
-                "data": st["data"],
-                "started_at": _time(st["started_at"]),
-                "finished_at": _time(st["finished_at"]),
-            }
-            for st in doc["steps"]
-        ]
-        if step_rows:
-            conn.execute(steps.insert(), step_rows)
-        event_rows = [
-            {
-                "session_id": sid,
-                "seq": e["seq"],
-                "time": _time(e["time"]),
-                "type": e["type"],
-                "data": e["data"],
-            }
-            for e in doc["events"]
-        ]
-        for i in range(0, len(event_rows), _BATCH):
-            conn.execute(events.insert(), event_rows[i : i + _BATCH])
-        new_ids: dict[tuple[str, int, int], int] = {}
-        for c in doc["captures"]:
-            values = {k: v for k, v in c.items() if k != "id"}
-            done = conn.execute(captures.insert().values(session_id=sid, **values))
-            new_ids[(sid, c["step_index"], c["frame_index"])] = new_id(done)
-        rows = []
-        for m in doc["measurements"]:
-            ref = m["capture"]
-            key = (ref["session_id"], ref["step_index"], ref["frame_index"])
-            if key not in new_ids:
-                new_ids[key] = _find_capture(conn, record, sid, key)
-            rows.append(
-                {
-                    "session_id": sid,
-                    "capture_id": new_ids[key],
-                    "params_hash": m["params_hash"],
-                    "software": m["software"],
-                    "ok": m["ok"],
-                    "result": m["result"],
-                }
-            )
-        for i in range(0, len(rows), _BATCH):
-            conn.execute(measurements.insert(), rows[i : i + _BATCH])
-
-
-def _find_capture(conn: sa.Connection, record: Record, sid: str, key: tuple[str, int, int]) -> int:
-    found = conn.execute(
-        sa.select(captures.c.id).where(
-            (captures.c.session_id == key[0])
-            & (captures.c.step_index == key[1])
-            & (captures.c.frame_index == key[2])
-        )
-    ).scalar_one_or_none()
-    if found is None:
-        raise RecordError(
-            f"session {sid} measures step {key[1]} frame {key[2]} of session {key[0]}, which is not in "
-            f"the record at {record.url}: import session {key[0]} first"
-        )
-    return int(found)

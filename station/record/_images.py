@@ -54,7 +54,7 @@ def encode_png(image: npt.NDArray[np.uint8] | npt.NDArray[np.uint16]) -> bytes:
     return buffer.tobytes()
 
 
-def _fsync_dir(directory: Path) -> None:
+def fsync_dir(directory: Path) -> None:
     fd = os.open(directory, os.O_RDONLY | os.O_DIRECTORY)
     try:
         os.fsync(fd)
@@ -75,7 +75,7 @@ def write_atomic(path: Path, data: bytes) -> None:
     try:
         if not path.parent.is_dir():
             path.parent.mkdir(parents=True)
-            _fsync_dir(path.parent.parent)  # the new directory's entry is durable too
+            fsync_dir(path.parent.parent)  # the new directory's entry is durable too
         fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
         try:
             _write_all(fd, data)
@@ -83,7 +83,7 @@ def write_atomic(path: Path, data: bytes) -> None:
         finally:
             os.close(fd)
         os.replace(tmp, path)
-        _fsync_dir(path.parent)
+        fsync_dir(path.parent)
     except OSError as exc:
         with contextlib.suppress(OSError):
             tmp.unlink()
@@ -99,9 +99,10 @@ def sha256_file(path: Path) -> str:
     return digest.hexdigest()
 
 
-def read_checked(path: Path, sha256: str) -> npt.NDArray[np.uint8] | npt.NDArray[np.uint16]:
-    """Decode a stored image after checking its bytes against the recorded sha256."""
-    try:  # through the station's one front door for image files (station/imageio.py)
+def read_bytes_checked(path: Path, sha256: str) -> bytes:
+    """A stored image's bytes, read through the station's front door for image files
+    (``station/imageio.py``: a regular file, capped), after checking them against the recorded sha256."""
+    try:
         data = read_file_bytes(path, what="image file")
     except ImageFileError as exc:
         raise RecordError(
@@ -113,6 +114,12 @@ def read_checked(path: Path, sha256: str) -> npt.NDArray[np.uint8] | npt.NDArray
             f"capture image {path} changed since it was recorded (sha256 {actual[:12]}..., recorded "
             f"{sha256[:12]}...); restore the original from a backup or an export"
         )
+    return data
+
+
+def read_checked(path: Path, sha256: str) -> npt.NDArray[np.uint8] | npt.NDArray[np.uint16]:
+    """Decode a stored image after checking its bytes against the recorded sha256."""
+    data = read_bytes_checked(path, sha256)
     try:
         return decode_image(data, name=path).image
     except ImageFileError as exc:

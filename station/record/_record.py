@@ -8,30 +8,37 @@ can share one record from several threads and processes; nothing image-sized is 
 from __future__ import annotations
 
 import contextlib
-import hashlib
-import math
 import re
 import uuid
 from collections.abc import Callable, Iterator, Mapping
 from datetime import UTC, datetime
 from pathlib import Path
 from types import TracebackType
-from typing import Any, Self
+from typing import Any, BinaryIO, Self
 
-import numpy as np
-import numpy.typing as npt
 import sqlalchemy as sa
 
-from station.record import _export, _images
-from station.record._engine import BEGIN_OPTION, create_engine, redact, upgrade
+from station.record import _export
+from station.record._engine import BEGIN_OPTION, open_engine, reason
 from station.record._errors import RecordError, RecordNotFoundError
-from station.record._json import json_object, params_hash, strip_point_arrays
-from station.record._rows import STEP_STATES, CaptureRow, EventRow, MeasurementRow, SessionRow, StepRow
-from station.record._schema import captures, events, measurements, new_id, sessions, steps
+from station.record._format import SESSION_ID
+from station.record._frames import FramesMixin
+from station.record._import import import_export
+from station.record._json import json_object
+from station.record._rows import (
+    STEP_STATES,
+    EventRow,
+    SessionRow,
+    StepRow,
+    event_row,
+    session_row,
+    step_row,
+)
+from station.record._schema import events, new_id, sessions, steps
+from station.record._sources import ArchiveLimits, FolderSource, ZipSource, open_source
 
 Clock = Callable[[], datetime]
 _HEX_PREFIX = re.compile(r"[0-9a-f]{4,12}")
-_SESSION_ID = re.compile(r"[0-9a-f]{12}")
 MIN_PREFIX = 4
 
 
@@ -44,75 +51,7 @@ def random_session_id() -> str:
     return uuid.uuid4().hex[:12]
 
 
-def session_row(r: sa.Row[Any]) -> SessionRow:
-    return SessionRow(
-        id=r.id,
-        kind=r.kind,
-        state=r.state,
-        created_at=r.created_at,
-        updated_at=r.updated_at,
-        params=r.params,
-        config=r.config,
-        identities=r.identities,
-        software=r.software,
-        results=r.results,
-        error=r.error,
-        parent_id=r.parent_id,
-        station=r.station,
-    )
-
-
-def event_row(r: sa.Row[Any]) -> EventRow:
-    return EventRow(id=r.id, session_id=r.session_id, seq=r.seq, time=r.time, type=r.type, data=r.data)
-
-
-def step_row(r: sa.Row[Any]) -> StepRow:
-    return StepRow(
-        session_id=r.session_id,
-        index=r.step_index,
-        name=r.name,
-        state=r.state,
-        data=r.data,
-        started_at=r.started_at,
-        finished_at=r.finished_at,
-    )
-
-
-def capture_row(r: sa.Row[Any]) -> CaptureRow:
-    return CaptureRow(
-        id=r.id,
-        session_id=r.session_id,
-        step_index=r.step_index,
-        frame_index=r.frame_index,
-        path=r.path,
-        width=r.width,
-        height=r.height,
-        dtype=r.dtype,
-        sha256=r.sha256,
-        timestamp_s=r.timestamp_s,
-        meta=r.meta,
-        z_mm=r.z_mm,
-    )
-
-
-def measurement_row(r: sa.Row[Any]) -> MeasurementRow:
-    return MeasurementRow(
-        id=r.id,
-        session_id=r.session_id,
-        capture_id=r.capture_id,
-        params_hash=r.params_hash,
-        software=r.software,
-        ok=r.ok,
-        result=r.result,
-    )
-
-
-def capture_path(session_id: str, step_index: int, frame_index: int) -> str:
-    """A capture's image path relative to the data directory."""
-    return f"images/{session_id}/{step_index:05d}-{frame_index:02d}.png"
-
-
-class Record:
+class Record(FramesMixin):
     """The station's durable record (see the package notes).
 
     Parameters
@@ -127,6 +66,10 @@ class Record:
         Returns a new session id (12 lowercase hex digits); injected by tests.
     busy_timeout_s
         SQLite only: how long a writer waits for another writer before failing.
+    read_only
+        Open for reading only (``station sessions``, ``report``, ``export``): nothing is created,
+        migrated or written, and it works on a full disk or a read-only directory; a missing data
+        directory or record is a :class:`NoRecordError`.
     """
 
     def __init__(
@@ -137,20 +80,15 @@ class Record:
         clock: Clock = _utc_now,
         make_id: Callable[[], str] = random_session_id,
         busy_timeout_s: float = 30.0,
+        read_only: bool = False,
     ) -> None:
         self._data_dir = Path(data_dir)
-        try:
-            self._data_dir.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise RecordError(f"cannot create the data directory {self._data_dir}: {exc.strerror}") from exc
+        self._read_only = read_only
         self._clock = clock
         self._make_id = make_id
-        self._engine = create_engine(self._data_dir, url, busy_timeout_s=busy_timeout_s)
-        try:
-            upgrade(self._engine)
-        except BaseException:
-            self._engine.dispose()
-            raise
+        self._engine, self._url = open_engine(
+            self._data_dir, url, busy_timeout_s=busy_timeout_s, read_only=read_only
+        )
 
     # -- lifecycle -------------------------------------------------------------------------------
     @property
@@ -159,8 +97,12 @@ class Record:
 
     @property
     def url(self) -> str:
-        """The database URL with any password hidden."""
-        return redact(self._engine.url)
+        """The database URL with any password hidden (user part and query)."""
+        return self._url
+
+    @property
+    def read_only(self) -> bool:
+        return self._read_only
 
     @property
     def engine(self) -> sa.Engine:
@@ -184,6 +126,8 @@ class Record:
     @contextlib.contextmanager
     def _write(self) -> Iterator[sa.Connection]:
         """One write transaction; a database failure (disk full, lost server ...) is a RecordError."""
+        if self._read_only:
+            raise RecordError(f"the record at {self.url} was opened read-only: this command does not write")
         try:
             with self._engine.connect() as conn:
                 conn = conn.execution_options(**{BEGIN_OPTION: "IMMEDIATE"})
@@ -191,8 +135,8 @@ class Record:
                     yield conn
         except sa.exc.DBAPIError as exc:
             raise RecordError(
-                f"cannot write to the record at {self.url}: {exc.orig}; nothing of this change was "
-                "recorded (check free space and the database server)"
+                f"cannot write to the record at {self.url}: {reason(exc, self._engine.url)}; nothing of "
+                "this change was recorded (check free space and the database server)"
             ) from exc
 
     @contextlib.contextmanager
@@ -201,7 +145,9 @@ class Record:
             with self._engine.connect() as conn:
                 yield conn
         except sa.exc.DBAPIError as exc:
-            raise RecordError(f"cannot read the record at {self.url}: {exc.orig}") from exc
+            raise RecordError(
+                f"cannot read the record at {self.url}: {reason(exc, self._engine.url)}"
+            ) from exc
 
     def _now(self) -> datetime:
         now = self._clock()
@@ -232,7 +178,7 @@ class Record:
         if not kind:
             raise ValueError("kind must name the plan (validation, repeatability ...), not be empty")
         session_id = self._make_id()
-        if not _SESSION_ID.fullmatch(session_id):
+        if not SESSION_ID.fullmatch(session_id):
             raise RecordError(f"session id {session_id!r} is not 12 lowercase hex digits")
         now = self._now()
         row = SessionRow(
@@ -274,9 +220,14 @@ class Record:
         if not rows:
             raise RecordNotFoundError(id_or_prefix, self.url)
         if len(rows) > 1:
-            names = ", ".join(r.id for r in rows)
+            names = ", ".join(r.id[:40] for r in rows)
             raise RecordError(
                 f"session prefix {id_or_prefix!r} is ambiguous: it matches {names}; give more characters"
+            )
+        if not SESSION_ID.fullmatch(rows[0].id):  # a record altered by hand, or an old import
+            raise RecordError(
+                f"the record at {self.url} holds a session whose id {rows[0].id[:40]!r} is not 12 hex "
+                "digits: it was not written by the station; remove that session from the record"
             )
         return session_row(rows[0])
 
@@ -420,134 +371,26 @@ class Record:
             result: int | None = conn.execute(query).scalar_one()
         return result
 
-    # -- captures --------------------------------------------------------------------------------
-    def save_capture(
-        self,
-        session_id: str,
-        step_index: int,
-        frame_index: int,
-        image: npt.NDArray[np.uint8] | npt.NDArray[np.uint16],
-        *,
-        timestamp_s: float,
-        meta: Mapping[str, Any],
-        z_mm: float | None = None,
-    ) -> CaptureRow:
-        """Store a frame as a lossless PNG (atomically, durably), then its row.
-
-        ``z_mm``: the distance sensor's reading with the frame (mm), if any.
-
-        Raises
-        ------
-        RecordWriteError
-            The file could not be written (disk full ...): no file, no row.
-        """
-        image = _images.check_image(image)
-        if step_index < 0 or frame_index < 0:
-            raise ValueError(f"step and frame indices must be >= 0, not {step_index}, {frame_index}")
-        if z_mm is not None and not math.isfinite(z_mm):
-            raise ValueError(f"z_mm must be a finite distance in mm or None, not {z_mm!r}")
-        meta_value = json_object(meta, "meta")
-        rel = capture_path(session_id, step_index, frame_index)
-        with self._read() as conn:
-            self._require_session(conn, session_id)
-            taken = conn.execute(
-                sa.select(captures.c.id).where(
-                    (captures.c.session_id == session_id)
-                    & (captures.c.step_index == step_index)
-                    & (captures.c.frame_index == frame_index)
-                )
-            ).first()
-        if taken is not None:
-            raise RecordError(
-                f"session {session_id} already has step {step_index} frame {frame_index} (capture "
-                f"{taken.id}); frames are never overwritten: re-begin the step to capture it again"
-            )
-        data = _images.encode_png(image)
-        sha = hashlib.sha256(data).hexdigest()
-        path = self._data_dir / rel
-        _images.write_atomic(path, data)
-        del data
-        values: dict[str, Any] = {
-            "session_id": session_id,
-            "step_index": step_index,
-            "frame_index": frame_index,
-            "path": rel,
-            "width": int(image.shape[1]),
-            "height": int(image.shape[0]),
-            "dtype": image.dtype.name,
-            "sha256": sha,
-            "timestamp_s": float(timestamp_s),
-            "meta": meta_value,
-            "z_mm": None if z_mm is None else float(z_mm),
-        }
-        try:
-            with self._write() as conn:
-                capture_id = new_id(conn.execute(captures.insert().values(**values)))
-        except RecordError:
-            path.unlink(missing_ok=True)  # no row names it: an orphan would only mislead
-            raise
-        return CaptureRow(id=capture_id, **values)
-
-    def captures(self, session_id: str, *, step_index: int | None = None) -> list[CaptureRow]:
-        """The session's captures (of one step, if given), by step then frame."""
-        query = sa.select(captures).where(captures.c.session_id == session_id)
-        if step_index is not None:
-            query = query.where(captures.c.step_index == step_index)
-        query = query.order_by(captures.c.step_index, captures.c.frame_index)
-        with self._read() as conn:
-            return [capture_row(r) for r in conn.execute(query)]
-
-    def capture(self, capture_id: int) -> CaptureRow:
-        """One capture by id."""
-        with self._read() as conn:
-            r = conn.execute(sa.select(captures).where(captures.c.id == capture_id)).first()
-        if r is None:
-            raise RecordError(f"no capture {capture_id} in the record at {self.url}")
-        return capture_row(r)
-
-    def load_image(self, capture: CaptureRow) -> npt.NDArray[np.uint8] | npt.NDArray[np.uint16]:
-        """The capture's image, after checking the file's sha256 against the record."""
-        return _images.read_checked(self._data_dir / capture.path, capture.sha256)
-
-    # -- measurements ----------------------------------------------------------------------------
-    def add_measurement(
-        self,
-        session_id: str,
-        capture_id: int,
-        result: Mapping[str, Any],
-        *,
-        params: Mapping[str, Any],
-        software: str,
-    ) -> MeasurementRow:
-        """Store one measurement (the ``station measure --json`` object, point arrays stripped)."""
-        value: dict[str, Any] = strip_point_arrays(json_object(result, "result"))
-        phash = params_hash(params)
-        with self._write() as conn:
-            self._require_session(conn, session_id)
-            if conn.execute(sa.select(captures.c.id).where(captures.c.id == capture_id)).first() is None:
-                raise RecordError(f"no capture {capture_id} in the record at {self.url} to measure")
-            values: dict[str, Any] = {
-                "session_id": session_id,
-                "capture_id": capture_id,
-                "params_hash": phash,
-                "software": software,
-                "ok": bool(value.get("ok", False)),
-                "result": value,
-            }
-            mid = new_id(conn.execute(measurements.insert().values(**values)))
-        return MeasurementRow(id=mid, **values)
-
-    def measurements(self, session_id: str) -> list[MeasurementRow]:
-        """The session's measurements in the order they were stored."""
-        query = sa.select(measurements).where(measurements.c.session_id == session_id)
-        with self._read() as conn:
-            return [measurement_row(r) for r in conn.execute(query.order_by(measurements.c.id))]
-
     # -- export / import -------------------------------------------------------------------------
     def export_session(self, session_id: str, out_dir: Path) -> Path:
         """Write the session as a self-contained folder ``out_dir/<id>/``; returns that folder."""
         return _export.export_session(self, self.get_session(session_id).id, Path(out_dir))
 
     def import_session(self, folder: Path) -> SessionRow:
-        """Import a folder written by :meth:`export_session`; the session keeps its id."""
-        return _export.import_session(self, Path(folder))
+        """Import a folder written by :meth:`export_session`; the session keeps its id.
+
+        The folder is untrusted input (``_import.py``): ImportRefusedError naming the field, and
+        nothing written, for anything that is not an unchanged export."""
+        with FolderSource(Path(folder)) as source:
+            return import_export(self, source)
+
+    def import_archive(self, file: BinaryIO, *, limits: ArchiveLimits | None = None) -> SessionRow:
+        """Import a zip of an export (``export.zip``, a zipped folder): :meth:`import_session`'s checks
+        and the archive's own caps."""
+        with ZipSource(file, limits=limits) as source:
+            return import_export(self, source)
+
+    def import_path(self, path: Path) -> SessionRow:
+        """Import an export folder, or a zip file of one (``station import``)."""
+        with open_source(Path(path)) as source:
+            return import_export(self, source)

@@ -4,9 +4,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from datetime import datetime
-from typing import Any
+from typing import Any, Literal, get_args
 
-STEP_STATES = ("started", "done", "failed")
+import sqlalchemy as sa
+
+StepState = Literal["started", "done", "failed"]
+STEP_STATES: tuple[str, ...] = get_args(StepState)
+SessionState = Literal[
+    "idle", "running", "pausing", "paused", "awaiting_operator", "stopping", "stopped", "aborting",
+    "aborted", "failed", "succeeded", "interrupted",
+]  # fmt: skip
+SESSION_STATES: tuple[str, ...] = get_args(SessionState)
+"""The runner's state names (``station.runner.RunnerState``), which the record cannot import."""
 
 
 @dataclass(frozen=True)
@@ -85,3 +94,69 @@ class MeasurementRow:
     software: str
     ok: bool
     result: dict[str, Any]
+
+
+# ------------------------------------------------------------------ from the database's rows
+
+
+def session_row(r: sa.Row[Any]) -> SessionRow:
+    return SessionRow(
+        id=r.id,
+        kind=r.kind,
+        state=r.state,
+        created_at=r.created_at,
+        updated_at=r.updated_at,
+        params=r.params,
+        config=r.config,
+        identities=r.identities,
+        software=r.software,
+        results=r.results,
+        error=r.error,
+        parent_id=r.parent_id,
+        station=r.station,
+    )
+
+
+def event_row(r: sa.Row[Any]) -> EventRow:
+    return EventRow(id=r.id, session_id=r.session_id, seq=r.seq, time=r.time, type=r.type, data=r.data)
+
+
+def step_row(r: sa.Row[Any]) -> StepRow:
+    return StepRow(
+        session_id=r.session_id,
+        index=r.step_index,
+        name=r.name,
+        state=r.state,
+        data=r.data,
+        started_at=r.started_at,
+        finished_at=r.finished_at,
+    )
+
+
+def capture_row(r: sa.Row[Any]) -> CaptureRow:
+    return CaptureRow(
+        id=r.id,
+        session_id=r.session_id,
+        step_index=r.step_index,
+        frame_index=r.frame_index,
+        path=r.path,
+        width=r.width,
+        height=r.height,
+        dtype=r.dtype,
+        sha256=r.sha256,
+        timestamp_s=r.timestamp_s,
+        meta=r.meta,
+        z_mm=r.z_mm,
+    )
+
+
+def measurement_row(r: sa.Row[Any]) -> MeasurementRow:
+    return MeasurementRow(
+        id=r.id,
+        session_id=r.session_id,
+        capture_id=r.capture_id,
+        params_hash=r.params_hash,
+        software=r.software,
+        ok=r.ok,
+        result=r.result,
+    )

@@ -97,6 +97,8 @@ def validation_figure(r: ValidationResults, *, fit: str) -> NamedFigure:
         label, mean, mx = "rigid fit", r.rigid.mean_um, r.rigid.max_um
         title = "Raw: measured vs table positions (rigid fit)"
     else:
+        if r.affine is None:
+            raise ValueError("these results have no parallelogram fit (positions on a line)")
         err = np.array([p.error_parallelogram_um for p in r.positions], dtype=np.float64).reshape(-1, 2)
         label, mean, mx = "parallelogram fit", r.affine.mean_um, r.affine.max_um
         title = "Parallelogram: measured vs table positions (affine fit)"
@@ -619,7 +621,8 @@ def results_figures(r: object) -> list[NamedFigure]:
     if isinstance(r, ValidationResults):
         if not r.positions:
             return []
-        return [validation_figure(r, fit="raw"), validation_figure(r, fit="parallelogram")]
+        raw = validation_figure(r, fit="raw")
+        return [raw] if r.affine is None else [raw, validation_figure(r, fit="parallelogram")]
     if isinstance(r, RepeatabilityResults):
         joints = {k: t for k, t in r.measured.items() if t.kind == "joint"}
         others = {k: t for k, t in r.measured.items() if t.kind != "joint"}

@@ -67,6 +67,11 @@ def _banner(s: Session) -> str:
         parts.append("It has no results; below are its facts as recorded.")
     elif s.problem is not None:
         parts.append(f"Its partial results could not be drawn ({_e(s.problem)}); they are shown as recorded.")
+    elif s.failed_checks:
+        parts.append(
+            "Its results below failed their checks (see Checks): they are kept and shown, and are not a "
+            "measurement to use."
+        )
     else:
         parts.append("Its results below are partial.")
     return f'<div class="banner">{" ".join(parts)}</div>'

@@ -45,14 +45,26 @@ class Fit(_Model):
     rotation_deg: float | None = None
 
 
+class Check(_Model):
+    """One gate's verdict (``results.checks``): a failed ``fail`` check failed the session."""
+
+    name: str
+    passed: bool
+    value: float | None = None
+    limit: float | tuple[float, float] | None = None
+    severity: str = "fail"
+    message: str = ""
+
+
 class Position(_Model):
-    """One table position. ``error_*_um`` = measured - fitted commanded, in the measured (artifact) axes."""
+    """One table position. ``error_*_um`` = measured - fitted commanded, in the measured (artifact) axes;
+    no parallelogram error when the positions measured lie on a line (a session stopped early)."""
 
     index: int
     commanded_um: Point
     measured_um: Point
     error_um: Point
-    error_parallelogram_um: Point
+    error_parallelogram_um: Point | None = None
 
 
 class ScaleCalibration(_Model):
@@ -64,19 +76,22 @@ class ScaleCalibration(_Model):
 class ValidationResults(_Model):
     mean_um: float
     max_um: float
-    parallelogram_mean_um: float
-    parallelogram_max_um: float
+    parallelogram_mean_um: float | None = None
+    parallelogram_max_um: float | None = None
     scale: float
-    groove_width_mm: float
+    groove_width_mm: float | None
     rigid: Fit
     similarity: Fit
-    affine: Fit
+    affine: Fit | None = None
     positions: list[Position] = Field(default_factory=list)
     scale_calibration: ScaleCalibration | None = None
     groove_width_u_mm: float | None = None
     groove_width_used_mm: float | None = None
     approach: str | None = None
     failures: list[dict[str, Any]] = Field(default_factory=list)
+    n_positions: int | None = None
+    partial: bool | None = None
+    checks: list[Check] = Field(default_factory=list)
 
 
 class RepeatabilityTest(_Model):
@@ -93,6 +108,8 @@ class RepeatabilityTest(_Model):
     rp_mm: float
     rp_ci95_mm: Point | None = None
     n_cycles: int
+    planned_cycles: int | None = None
+    partial: bool | None = None
     failures: list[dict[str, Any]] = Field(default_factory=list)
     # with a distance sensor: the same statistics in 3-D (x, y and the sensor's z)
     l_bar3d_mm: float | None = None
@@ -106,6 +123,9 @@ class FailedTest(_Model):
     """A test whose RP could not be computed (too few cycles measured), with the reason."""
 
     error: str
+    n_cycles: int | None = None
+    planned_cycles: int | None = None
+    partial: bool | None = None
 
 
 class RepeatabilityResults(_Model):
@@ -115,6 +135,8 @@ class RepeatabilityResults(_Model):
     seed_table2_mm: dict[str, float] | None = None
     speed_pct: float | None = None
     load_kg: float | None = None
+    partial: bool | None = None
+    checks: list[Check] = Field(default_factory=list)
 
     @property
     def measured(self) -> dict[str, RepeatabilityTest]:
@@ -252,6 +274,7 @@ class CalibrationResults(_Model):
     planned_configurations: int | None = None
     left_out: list[Any] = Field(default_factory=list)
     calibration: CalibrationDocument
+    checks: list[Check] = Field(default_factory=list)
 
 
 Results = ValidationResults | RepeatabilityResults | SweepResults | CalibrationResults
@@ -283,6 +306,12 @@ class Session:
     @property
     def succeeded(self) -> bool:
         return self.state == "succeeded"
+
+    @property
+    def failed_checks(self) -> list[Check]:
+        """The ``fail`` checks its results did not pass (why a session with results failed)."""
+        checks: list[Check] = getattr(self.results, "checks", [])
+        return [c for c in checks if c.severity == "fail" and not c.passed]
 
 
 _PARSERS: dict[

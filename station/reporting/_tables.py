@@ -19,6 +19,7 @@ from station.report import SweepRow, is_seed_table_1, seed_table_1, sweep_note, 
 from station.reporting._model import (
     CalibrationParameter,
     CalibrationResults,
+    Check,
     Deficiency,
     FailedTest,
     RepeatabilityResults,
@@ -118,7 +119,7 @@ def validation_tables(r: ValidationResults, session_id: str) -> dict[str, Table]
     fits = [
         ("raw (rigid)", r.rigid),
         ("scale (similarity)", r.similarity),
-        ("parallelogram (affine)", r.affine),
+        *([("parallelogram (affine)", r.affine)] if r.affine is not None else []),
     ]
     rows = [
         [
@@ -130,7 +131,10 @@ def validation_tables(r: ValidationResults, session_id: str) -> dict[str, Table]
         ]
         for name, f in fits
     ]
-    width = f"groove width from the scale fit: {r.groove_width_mm:.5f} mm"
+    if r.groove_width_mm is None:
+        width = "no groove width from the scale fit (the image did not follow the table)"
+    else:
+        width = f"groove width from the scale fit: {r.groove_width_mm:.5f} mm"
     if r.groove_width_u_mm is not None:
         width += f", u = {r.groove_width_u_mm:.5f} mm"
     width += f" (similarity scale {r.scale:.6f}"
@@ -142,6 +146,10 @@ def validation_tables(r: ValidationResults, session_id: str) -> dict[str, Table]
     ]
     if r.approach is not None:
         notes.append(f"approach: {r.approach}")
+    if r.affine is None:
+        notes.append("no parallelogram fit: the positions measured lie on a line (the session stopped early)")
+    if r.partial:
+        notes.append(f"partial: {r.n_positions} of the planned positions measured")
     if r.scale_calibration is not None:
         c = r.scale_calibration
         if c.session_id is None:
@@ -167,7 +175,7 @@ def validation_tables(r: ValidationResults, session_id: str) -> dict[str, Table]
                 f"{p.measured_um[0]:.4f}",
                 f"{p.measured_um[1]:.4f}",
                 f"{_norm(p.error_um):.4f}",
-                f"{_norm(p.error_parallelogram_um):.4f}",
+                "" if p.error_parallelogram_um is None else f"{_norm(p.error_parallelogram_um):.4f}",
             ]
             for p in r.positions
         ]
@@ -234,12 +242,12 @@ def repeatability_tables(r: RepeatabilityResults) -> dict[str, Table]:
         if t is None:  # an RP without its test's details (partial results)
             row = [name, "", "", "", f"{r.rp_mm[name]:.5f}", "", ""]
         elif isinstance(t, FailedTest):
-            row = [name, f"no RP: {t.error}", "", "", "", "", ""]
+            row = [name, f"no RP: {t.error}", "", "", "", "", _n(t.n_cycles, t.planned_cycles, t.partial)]
         else:
             failed += [(name, f) for f in t.failures]
             ci = "" if t.rp_ci95_mm is None else f"{t.rp_ci95_mm[0]:.5f} - {t.rp_ci95_mm[1]:.5f}"
             row = [name, motion(name, t), f"{t.l_bar_mm:.5f}", f"{t.s_l_mm:.5f}", f"{t.rp_mm:.5f}"]
-            row += [ci, str(t.n_cycles)]
+            row += [ci, _n(t.n_cycles, t.planned_cycles, t.partial)]
         if seed:
             row.append(f"{seed[name]:.5f}" if name in seed else "")
         if with_z:
@@ -254,7 +262,13 @@ def repeatability_tables(r: RepeatabilityResults) -> dict[str, Table]:
             "RP3D: the same in 3-D, each attained position's (x, y) from the image and z from the distance"
             " sensor"
         )
-    conditions = [f"{r.n_cycles} cycles per test"] if r.n_cycles is not None else []
+    partial = [name for name, t in r.tests.items() if getattr(t, "partial", False)]
+    if partial:
+        notes.append(
+            f"partial: {', '.join(partial)} measured fewer cycles than planned (N); their RP is their own "
+            "and not in the headline rp_mm"
+        )
+    conditions = [f"{r.n_cycles} cycles planned per test"] if r.n_cycles is not None else []
     if r.speed_pct is not None:
         conditions.append(f"{r.speed_pct:g} % speed")
     if r.load_kg is not None:
@@ -265,6 +279,34 @@ def repeatability_tables(r: RepeatabilityResults) -> dict[str, Table]:
     if failed:
         out["failures"] = failures_table([f for _, f in failed], [name for name, _ in failed])
     return out
+
+
+def _n(n: int | None, planned: int | None, partial: bool | None) -> str:
+    """A test's N: 'N', or 'N of P (partial)' when fewer cycles were measured than planned."""
+    if n is None:
+        return ""
+    if partial and planned is not None:
+        return f"{n} of {planned} (partial)"
+    return str(n)
+
+
+def checks_table(checks: Sequence[Check]) -> Table:
+    """The gates' verdicts: a failed ``fail`` check failed the session, a failed ``warn`` check is shown."""
+    rows = []
+    for c in checks:
+        verdict = "passed" if c.passed else ("FAILED" if c.severity == "fail" else "warning")
+        if isinstance(c.limit, tuple):
+            limit = f"[{c.limit[0]:.6g}, {c.limit[1]:.6g}]"
+        else:
+            limit = "" if c.limit is None else f"{c.limit:.6g}"
+        value = "-" if c.value is None else f"{c.value:.6g}"
+        rows.append([c.name, verdict, value, limit, c.severity, c.message])
+    return _make(
+        "Checks",
+        ("check", "verdict", "value", "limit", "severity", "message"),
+        rows,
+        "each result checked against what is physically possible; a failed 'fail' check fails the session",
+    )
 
 
 def sweep_fit(r: SweepResults) -> str:
@@ -603,7 +645,13 @@ def calibration_tables(r: CalibrationResults) -> dict[str, Table]:
 
 
 def results_tables(s: Session) -> dict[str, Table]:
-    """The tables of a session's results (none when it has none)."""
+    """The tables of a session's results (none when it has none), their checks first."""
+    checks: list[Check] = getattr(s.results, "checks", [])
+    tables = _kind_tables(s)
+    return {"checks": checks_table(checks), **tables} if checks else tables
+
+
+def _kind_tables(s: Session) -> dict[str, Table]:
     r = s.results
     if isinstance(r, ValidationResults):
         return validation_tables(r, s.id)

@@ -273,7 +273,7 @@ def draw_cross(
     shape: tuple[int, int] = (480, 640),
     center_px: tuple[float, float] = (320.0, 240.0),
     *,
-    groove_width_px: float = 79.4,
+    groove_width_px: float = 79.375,
     angle_deg: float = 2.0,
     blur_px: float = 1.2,
     noise: float = 2.0,
@@ -282,7 +282,9 @@ def draw_cross(
     """A crossed-groove artifact image: dark paint-filled grooves on a bright land, smooth edges.
 
     Edges are error-function profiles of width ``blur_px`` around the exact groove borders, so the
-    crossing's true position is ``center_px`` to well below 0.01 px. Vectorised; no pixel loops.
+    crossing's true position is ``center_px`` to well below 0.01 px. Vectorised; no pixel loops. The
+    default width is the artifact's nominal 1/32 in (0.79375 mm) at the fake scene's 100 px/mm, so that a
+    validation on the fakes estimates a width inside the artifact's tolerance band (its gate).
     """
     from scipy.special import erf
 

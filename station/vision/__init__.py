@@ -35,6 +35,16 @@ from station.vision._params import (
     parse_assignments,
 )
 from station.vision._result import EdgeFit, Measurement
+from station.vision._ruler_errors import (
+    CodeInconsistentError,
+    CodeUnreadableError,
+    OffRulerError,
+    TooFewGraduationsError,
+)
+from station.vision._ruler_measure import measure_ruler
+from station.vision._ruler_params import RulerParams, parse_ruler_assignments
+from station.vision._ruler_result import RulerMeasurement
+from station.vision._ruler_spec import RulerCode, RulerSpec
 from station.vision._sanity import IncompleteCrossError, MultipleCrossingsError, check_single_cross
 from station.vision._series import series_centers_mm, series_homography
 from station.vision._testbox import acceptance_mask, segment_edge, testbox_scan
@@ -43,6 +53,8 @@ __all__ = [
     "EDGES",
     "NOMINAL_GROOVE_WIDTH_MM",
     "SEED_GAUSS_SIGMA_PX",
+    "CodeInconsistentError",
+    "CodeUnreadableError",
     "Edge",
     "EdgeFit",
     "EdgeNotFoundError",
@@ -55,7 +67,13 @@ __all__ = [
     "MeasurementError",
     "Mode",
     "MultipleCrossingsError",
+    "OffRulerError",
     "RecursiveFit",
+    "RulerCode",
+    "RulerMeasurement",
+    "RulerParams",
+    "RulerSpec",
+    "TooFewGraduationsError",
     "acceptance_mask",
     "apply_filter",
     "apply_homography",
@@ -69,8 +87,10 @@ __all__ = [
     "intensity_moment",
     "intersect",
     "measure",
+    "measure_ruler",
     "normal_form",
     "parse_assignments",
+    "parse_ruler_assignments",
     "recursive_fit",
     "segment_edge",
     "series_centers_mm",

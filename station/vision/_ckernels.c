@@ -13,6 +13,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "_ruler_kernels.h" /* the ruler measurement's kernels, in _ruler_kernels.c */
+
 /* ---------------------------------------------------------------- buffers */
 
 typedef struct {
@@ -1175,41 +1177,58 @@ static float pairwise_f32(const float *a, Py_ssize_t n) {
     return pairwise_f32(a, n2) + pairwise_f32(a + n2, n - n2);
 }
 
-/* contrast(values, out) -> None
+/* The middle of three values (NaN when any is). */
+static double median3_d(double a, double b, double c) {
+    if (a != a || b != b || c != c) return NAN;
+    const double lo = a < b ? a : b, hi = a < b ? b : a;
+    const double m = hi < c ? hi : c;
+    return lo > m ? lo : m;
+}
+
+/* The middle of the seen (not NaN) values among three: the median of three, the mean of two, the one;
+ * NaN when none is seen. */
+static double middle_seen(double a, double b, double c) {
+    const double x[3] = {a, b, c};
+    double total = 0.0;
+    int count = 0;
+    for (int i = 0; i < 3; i++)
+        if (x[i] == x[i]) {
+            total += x[i];
+            count++;
+        }
+    if (count == 3) return median3_d(a, b, c);
+    if (count == 2) return 0.5 * total;
+    return count == 1 ? total : NAN;
+}
+
+/* edge_contrast(values, out) -> None
  *
- * _sanity._Groove's contrast of each step along a groove from its remapped samples (float32 (11, T):
- * 5 across the groove, then 6 on the lands, NaN outside the frame): the mean of the lands seen minus
- * the groove's brightest sample (NaN when any groove sample is unseen, or no land is). */
-static PyObject *contrast(PyObject *self, PyObject *args) {
+ * _sanity._Groove's contrast of each wall at each step along a groove from its remapped samples
+ * (float32 (11, T): 5 across the groove from -0.3 w to +0.3 w, 3 on the + land, 3 on the - land; NaN
+ * outside the frame): out (2, T) float64, row 0 the - wall (the middle of the seen samples among 8-10
+ * minus the middle of samples 0-2), row 1 the + wall (5-7 and 2-4); NaN when a groove sample or
+ * every land sample of the wall is outside the frame. */
+static PyObject *edge_contrast(PyObject *self, PyObject *args) {
     PyObject *o_v, *o_out;
     if (!PyArg_ParseTuple(args, "OO", &o_v, &o_out)) return NULL;
     Buf vb = {0}, ob = {0};
     PyObject *result = NULL;
     if (get(o_v, &vb, 'f', -1, 0, "values") < 0) return NULL;
     if (items(&vb) % 11 != 0) {
-        PyErr_SetString(PyExc_ValueError, "contrast: values must be (11, steps)");
+        PyErr_SetString(PyExc_ValueError, "edge_contrast: values must be (11, steps)");
         goto done;
     }
     const Py_ssize_t T = items(&vb) / 11;
-    if (get(o_out, &ob, 'd', T, 1, "out") < 0) goto done;
+    if (get(o_out, &ob, 'd', 2 * T, 1, "out") < 0) goto done;
     const float *v = (const float *)vb.view.buf;
     double *out = (double *)ob.view.buf;
-    for (Py_ssize_t j = 0; j < T; j++) {
-        float sum = 0.0f, groove = v[j];
-        int64_t count = 0;
-        for (int i = 5; i < 11; i++) {
-            const float x = v[i * T + j];
-            if (x == x) {
-                sum += x;
-                count++;
-            }
+    static const int rows[2][6] = {{0, 1, 2, 8, 9, 10}, {4, 3, 2, 5, 6, 7}}; /* groove x3, land x3 */
+    for (int e = 0; e < 2; e++)
+        for (Py_ssize_t j = 0; j < T; j++) {
+            double x[6];
+            for (int i = 0; i < 6; i++) x[i] = (double)v[rows[e][i] * T + j];
+            out[e * T + j] = middle_seen(x[3], x[4], x[5]) - median3_d(x[0], x[1], x[2]);
         }
-        for (int i = 1; i < 5; i++) {
-            const float x = v[i * T + j];
-            groove = (groove != groove || x != x) ? NAN : (x > groove ? x : groove); /* np.max keeps NaN */
-        }
-        out[j] = count > 0 ? (double)sum / (double)count - (double)groove : NAN;
-    }
     Py_INCREF(Py_None);
     result = Py_None;
 done:
@@ -1315,35 +1334,36 @@ done:
     return result;
 }
 
-/* arms(contrast_h, distance_h, contrast_v, distance_v, width_h, width_v, present_fraction, tolerance,
+/* arms(edges_h, distance_h, edges_v, distance_v, width_h, width_v, present_fraction, tolerance,
  *      out_farthest) -> bits
  *
  * _sanity._missing_arms: the steps of each arm (right, left on the horizontal groove; lower, upper
- * on the vertical one) from past the perpendicular groove's rounded corners on; a step shows the
- * groove when its contrast reaches present_fraction of the upper quartile of every seen step's (at
- * least 5); an arm is missing (bit i) when its farthest seen step lies more than tolerance beyond its
- * farthest groove step (out_farthest[i]). */
+ * on the vertical one; edges (2, T): each wall's contrast, NaN where unseen) from past the
+ * perpendicular groove's rounded corners on. A step shows the groove when either wall's contrast
+ * reaches present_fraction of the upper quartile of every seen wall step's (at least 5); it is the
+ * groove when a neighbouring step on the arm shows it too. An arm is missing (bit i) when its farthest
+ * step with a wall seen lies more than tolerance beyond its farthest groove step (out_farthest[i]). */
 static PyObject *arms(PyObject *self, PyObject *args) {
-    PyObject *o_ch, *o_dh, *o_cv, *o_dv, *o_out;
+    PyObject *o_eh, *o_dh, *o_ev, *o_dv, *o_out;
     double wh, wv, fraction, tolerance;
-    if (!PyArg_ParseTuple(args, "OOOOddddO", &o_ch, &o_dh, &o_cv, &o_dv, &wh, &wv, &fraction, &tolerance, &o_out))
+    if (!PyArg_ParseTuple(args, "OOOOddddO", &o_eh, &o_dh, &o_ev, &o_dv, &wh, &wv, &fraction, &tolerance, &o_out))
         return NULL;
-    Buf chb = {0}, dhb = {0}, cvb = {0}, dvb = {0}, ob = {0};
+    Buf ehb = {0}, dhb = {0}, evb = {0}, dvb = {0}, ob = {0};
     PyObject *result = NULL;
     double *work = NULL;
-    if (get(o_ch, &chb, 'd', -1, 0, "contrast_h") < 0 || get(o_dh, &dhb, 'd', items(&chb), 0, "distance_h") < 0 ||
-        get(o_cv, &cvb, 'd', -1, 0, "contrast_v") < 0 || get(o_dv, &dvb, 'd', items(&cvb), 0, "distance_v") < 0 ||
+    if (get(o_dh, &dhb, 'd', -1, 0, "distance_h") < 0 || get(o_eh, &ehb, 'd', 2 * items(&dhb), 0, "edges_h") < 0 ||
+        get(o_dv, &dvb, 'd', -1, 0, "distance_v") < 0 || get(o_ev, &evb, 'd', 2 * items(&dvb), 0, "edges_v") < 0 ||
         get(o_out, &ob, 'd', 4, 1, "out_farthest") < 0)
         goto done;
-    const double *con[2] = {(const double *)chb.view.buf, (const double *)cvb.view.buf};
+    const double *edg[2] = {(const double *)ehb.view.buf, (const double *)evb.view.buf};
     const double *dist[2] = {(const double *)dhb.view.buf, (const double *)dvb.view.buf};
-    const Py_ssize_t len[2] = {items(&chb), items(&cvb)};
+    const Py_ssize_t len[2] = {items(&dhb), items(&dvb)};
     const int which[4] = {0, 0, 1, 1};
     const double sign[4] = {1.0, -1.0, 1.0, -1.0};
     const double widths[2] = {wh, wv};
     double start[4];
     double *far = (double *)ob.view.buf;
-    work = malloc((2 * (len[0] + len[1]) + 1) * sizeof(double));
+    work = malloc((4 * (len[0] + len[1]) + 1) * sizeof(double));
     if (!work) {
         PyErr_NoMemory();
         goto done;
@@ -1354,8 +1374,11 @@ static PyObject *arms(PyObject *self, PyObject *args) {
         const double other = widths[1 - g], width = widths[g];
         const double q = 0.25 * width;
         start[a] = 0.5 * other + (6.0 > q ? 6.0 : q);
-        for (Py_ssize_t k = 0; k < len[g]; k++)
-            if (sign[a] * dist[g][k] >= start[a] && isfinite(con[g][k])) work[n++] = con[g][k];
+        for (int e = 0; e < 2; e++)
+            for (Py_ssize_t k = 0; k < len[g]; k++) {
+                const double c = edg[g][e * len[g] + k];
+                if (sign[a] * dist[g][k] >= start[a] && isfinite(c)) work[n++] = c;
+            }
     }
     if (n == 0) {
         result = PyLong_FromLong(0);
@@ -1367,27 +1390,34 @@ static PyObject *arms(PyObject *self, PyObject *args) {
     long bits = 0;
     for (int a = 0; a < 4; a++) {
         const int g = which[a];
-        double seen_max = -INFINITY, present_max = -INFINITY;
-        int any_seen = 0, any_present = 0;
-        for (Py_ssize_t k = 0; k < len[g]; k++) {
-            const double t = sign[a] * dist[g][k], c = con[g][k];
-            if (!(t >= start[a]) || !isfinite(c)) continue;
+        const Py_ssize_t T = len[g];
+        const double *e0 = edg[g], *e1 = edg[g] + T;
+        double seen_max = -INFINITY, groove_max = -INFINITY;
+        int any_seen = 0, any_groove = 0;
+#define ON_ARM(k) ((k) >= 0 && (k) < T && sign[a] * dist[g][(k)] >= start[a])
+#define SHOWS(k) (e0[(k)] >= threshold || e1[(k)] >= threshold)
+        for (Py_ssize_t k = 0; k < T; k++) {
+            if (!ON_ARM(k)) continue;
+            const double t = sign[a] * dist[g][k];
+            if (!(isfinite(e0[k]) || isfinite(e1[k]))) continue;
             any_seen = 1;
             seen_max = t > seen_max ? t : seen_max;
-            if (c >= threshold) {
-                any_present = 1;
-                present_max = t > present_max ? t : present_max;
+            if (SHOWS(k) && ((ON_ARM(k - 1) && SHOWS(k - 1)) || (ON_ARM(k + 1) && SHOWS(k + 1)))) {
+                any_groove = 1;
+                groove_max = t > groove_max ? t : groove_max;
             }
         }
-        far[a] = any_present ? present_max : start[a];
+#undef ON_ARM
+#undef SHOWS
+        far[a] = any_groove ? groove_max : start[a];
         if (any_seen && seen_max - far[a] > tolerance) bits |= 1L << a;
     }
     result = PyLong_FromLong(bits);
 done:
     free(work);
-    release(&chb);
+    release(&ehb);
     release(&dhb);
-    release(&cvb);
+    release(&evb);
     release(&dvb);
     release(&ob);
     return result;
@@ -1735,7 +1765,7 @@ static PyMethodDef methods[] = {
     {"illumination", illumination, METH_VARARGS, "Precise mode's illumination fit over the lands."},
     {"testbox", testbox, METH_VARARGS, "Paper mode's TestBox segmentation of one edge."},
     {"edge_fit", edge_fit, METH_VARARGS, "Paper mode's moments and recursive line fit of one edge."},
-    {"contrast", contrast, METH_VARARGS, "The cross check's contrast of each step along a groove."},
+    {"edge_contrast", edge_contrast, METH_VARARGS, "The cross check's contrast of a groove's two walls."},
     {"second_band", second_band, METH_VARARGS, "The cross check's search for a second groove."},
     {"arms", arms, METH_VARARGS, "The cross check's arms that end inside the field of view."},
     {"groove_maps", groove_maps, METH_VARARGS, "The cross check's sampling maps along a groove."},
@@ -1744,6 +1774,7 @@ static PyMethodDef methods[] = {
     {"quality", quality, METH_VARARGS, "The image quality check's percentiles and saturation."},
     {"prewitt", prewitt, METH_VARARGS, "Paper mode's operators on an 8-bit image, with their extremes."},
     {"above", above, METH_VARARGS, "Flat indices of the responses above a level in magnitude."},
+    RULER_KERNEL_METHODS
     {NULL, NULL, 0, NULL},
 };
 

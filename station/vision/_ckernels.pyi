@@ -85,14 +85,14 @@ def edge_fit(
     out_kept: npt.NDArray[np.bool_],
     /,
 ) -> tuple[int, int, float, float, float, float]: ...
-def contrast(values: npt.NDArray[np.float32], out: npt.NDArray[np.float64], /) -> None: ...
+def edge_contrast(values: npt.NDArray[np.float32], out: npt.NDArray[np.float64], /) -> None: ...
 def second_band(
     turned: npt.NDArray[np.float32], row: float, width: float, depth_fraction: float, /
 ) -> float | None: ...
 def arms(
-    contrast_h: npt.NDArray[np.float64],
+    edges_h: npt.NDArray[np.float64],
     distance_h: npt.NDArray[np.float64],
-    contrast_v: npt.NDArray[np.float64],
+    edges_v: npt.NDArray[np.float64],
     distance_v: npt.NDArray[np.float64],
     width_h: float,
     width_v: float,

@@ -9,19 +9,35 @@ only rejects; it never changes a number.
 Every fourth pixel of the image is sampled along each groove (a 4 px step) and across it (the groove
 and its lands), by one ``remap`` per groove.
 
-* **Arms** (``incomplete_cross``): a step shows the groove when the lands on either side are brighter
-  than the whole width of the groove (its brightest row) by 40 % of the cross's typical contrast. An
-  arm is present when its farthest such step lies within 10 px (plus the 4 px step) of the farthest
-  step that can be seen in the frame (the border, in practice): a groove never ends inside the field
-  of view. Gaps (glints, dirt) in between do not matter, and an arm too short to be seen (a crossing
-  close to the border) is present.
+* **Arms** (``incomplete_cross``): where a groove ends is read from its two walls, not from the
+  brightness of its middle. At each step, a wall's contrast is the middle of its three land samples
+  (the mean of two, or the one, where the others fall outside the frame) minus the middle of its
+  three groove samples (at the groove's middle and at 0.15 and 0.3 of its width from it, toward that
+  wall), so that one bright speck, glint or chip in the paint, or one dark scratch on the land, on a
+  sample changes nothing. A step shows the groove when either wall's contrast reaches 40 % of the
+  cross's typical wall contrast (the upper quartile): a groove ends where both its walls end. It is
+  the groove when a neighbouring step shows it too (over a stretch: a lone step, e.g. where two
+  scratches cross bare land, makes no groove). An arm is present when its farthest groove step lies
+  within 10 px (plus the 4 px step) of the farthest step whose wall can be seen in the frame (the
+  border, in practice): a groove never ends inside the field of view. Gaps (glints, flecks, specks,
+  scratches) in between do not matter, and an arm too short to be seen (a crossing close to the
+  border) is present. Issue 19 (finding 5): the previous rule, the lands against the groove's
+  *brightest* sample across its width, lost the last few steps to a cluster of chips and specks by
+  the border and refused whole crosses ("the right arm ends 280 px from the crossing"); on 240 such
+  frames (``hard-specks``, ``tests/vision/test_cross_check.py``) it refused 3 of 480 measurements,
+  this rule none, while every T-junction stays refused and an arm that stops 30 px before the border
+  is still missing.
 * **One crossing** (``multiple_crossings``): every eighth pixel, turned onto the groove's axis and
   averaged along it (a profile across the groove); any dark band
   besides the measured groove, at least half as deep and a third as wide, is a second groove, hence a
   second crossing.
 
-Cost: 0.6-0.7 ms of CPU per 640x480 frame on the (loaded, 2-core) build machine, a fifth of precise
-mode's time in the same run; a few dozen numpy calls, no per-pixel Python loop.
+Cost (``python -m bench.cross_check_bench``: the thread's CPU time per 640x480 frame on the loaded
+2-core build machine): 0.17-0.28 ms with the compiled kernels, 0.1-0.17 of precise mode's whole
+measurement; 0.55-1.2 ms with the numpy reference. Against the rule before, interleaved in one
+process on the same frames (of all three presets): compiled 0.17-0.22 ms against 0.16-0.19 ms (the
+ratio 0.94-1.33 per round, median 1.08), numpy 0.55-0.65 ms against 0.38-0.42 ms (1.4-1.6). A few
+dozen numpy calls, no per-pixel Python loop.
 """
 
 from __future__ import annotations
@@ -41,7 +57,7 @@ Line = tuple[float, float, float]
 
 #: The farthest groove step of an arm may stop this short of the farthest visible one (px).
 BORDER_TOLERANCE_PX = 10.0
-#: A step shows the groove when its contrast reaches this fraction of the cross's typical contrast.
+#: A step shows the groove when a wall's contrast reaches this fraction of the cross's typical one.
 PRESENT_FRACTION = 0.4
 #: Another dark band this deep (fraction of the measured groove's) is a second groove.
 SECOND_GROOVE_DEPTH = 0.5
@@ -91,8 +107,43 @@ def _span(c: FloatArray, u: FloatArray, shape: tuple[int, int]) -> tuple[int, in
     return math.floor(lo) - 1, math.ceil(hi) + 2
 
 
+#: The samples of each wall (``_Groove``'s rows: 0-4 across the groove from -0.3 w to +0.3 w, 5-7 on
+#: the land on the + side, 8-10 on the land on the - side): (inside the groove, on the land beyond).
+_EDGE_ROWS = (((0, 1, 2), (8, 9, 10)), ((4, 3, 2), (5, 6, 7)))
+
+
+def _median3(a: FloatArray, b: FloatArray, c: FloatArray) -> FloatArray:
+    """The middle of three values, elementwise (NaN where any is NaN)."""
+    return np.asarray(np.maximum(np.minimum(a, b), np.minimum(np.maximum(a, b), c)))
+
+
+def _middle_seen(samples: FloatArray) -> FloatArray:
+    """The middle of each column's seen (not NaN) values among three: the median of three, the mean of
+    two, the one; NaN when none is seen."""
+    seen = samples == samples
+    count = seen.sum(axis=0)
+    total = np.where(seen, samples, 0.0).sum(axis=0)
+    middle = np.where(count == 2, 0.5 * total, total)
+    return np.where(count == 3, _median3(*samples), np.where(count > 0, middle, np.nan))
+
+
+def _edge_contrast(
+    values: npt.NDArray[np.float32], inside: tuple[int, ...], land: tuple[int, ...]
+) -> FloatArray:
+    """One wall's contrast at each step: the middle of its land samples seen (one needed) minus the
+    middle of its three groove samples (all needed, else NaN: not seen), so that one bright speck or
+    dark scratch on a sample changes nothing."""
+    lands = values[list(land)]
+    middle = _median3(*lands).astype(np.float64)  # exact: a median of float32 values is one of them
+    partial = np.flatnonzero(np.isnan(middle))  # a land sample outside the frame (near the border)
+    if partial.size:
+        middle[partial] = _middle_seen(lands[:, partial].astype(np.float64))
+    return middle - _median3(*(values[i] for i in inside)).astype(np.float64)
+
+
 class _Groove:
-    """One groove: the contrast of each step along it, and the image turned onto its axis."""
+    """One groove: the contrast of its two walls at each step along it, and the image turned onto its
+    axis."""
 
     def __init__(
         self,
@@ -136,15 +187,11 @@ class _Groove:
             small, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan
         )
         if ck is not None:  # the same arithmetic in one pass (``_kernels``)
-            self.contrast = np.empty(values.shape[1])
-            ck.contrast(np.ascontiguousarray(values, np.float32), self.contrast)
+            self.edges = np.empty((2, values.shape[1]))
+            ck.edge_contrast(np.ascontiguousarray(values, np.float32), self.edges)
         else:
-            lands = values[5:]
-            seen = lands == lands  # not NaN: inside the frame
-            count = seen.sum(axis=0)
-            mean_land = np.add.reduce(lands, axis=0, where=seen) / np.maximum(count, 1)
-            groove = values[:5].max(axis=0)  # NaN where any of it is outside the frame: not seen
-            self.contrast = np.where(count > 0, mean_land - groove, np.nan)
+            samples = np.asarray(values, dtype=np.float32)
+            self.edges = np.stack([_edge_contrast(samples, *rows) for rows in _EDGE_ROWS])
         self.distance = t * _REDUCE  # along the groove from the crossing (px)
         # the coarse image turned so that the groove runs along its rows
         ch, cw = coarse.shape
@@ -236,9 +283,9 @@ def _missing_arms(
     if ck is not None:
         ends = np.empty(len(_ARMS))
         bits = ck.arms(
-            np.ascontiguousarray(horizontal.contrast, np.float64),
+            np.ascontiguousarray(horizontal.edges, np.float64),
             np.ascontiguousarray(horizontal.distance, np.float64),
-            np.ascontiguousarray(vertical.contrast, np.float64),
+            np.ascontiguousarray(vertical.edges, np.float64),
             np.ascontiguousarray(vertical.distance, np.float64),
             widths[0],
             widths[1],
@@ -253,20 +300,25 @@ def _missing_arms(
         other, width = widths[1 - which], widths[which]
         start = 0.5 * other + max(6.0, 0.25 * width)  # past the perpendicular groove's rounded corners
         t = sign * g.distance
-        on_arm = t >= start
-        steps.append((name, t[on_arm], g.contrast[on_arm], start))
-    every = np.concatenate([c for *_, c, _ in steps])
+        on_arm = t >= start  # a run of consecutive steps: neighbours in it are neighbours on the arm
+        steps.append((name, t[on_arm], g.edges[:, on_arm], start))
+    every = np.concatenate([e.ravel() for *_, e, _ in steps])
     every = every[np.isfinite(every)]
     if every.size == 0:
         return []
     threshold = PRESENT_FRACTION * max(_quantile(every, 0.75), 5.0)
     missing = []
-    for name, t, contrast, start in steps:
-        seen = np.isfinite(contrast)
+    for name, t, edges, start in steps:
+        seen = np.isfinite(edges).any(axis=0)
         if not seen.any():
             continue  # too short to be seen: its crossing is at the border
-        present = seen & (contrast >= threshold)
-        farthest = float(t[present].max()) if present.any() else start
+        # either wall (an unseen one, NaN, never shows)
+        shows: npt.NDArray[np.bool_] = np.asarray((edges >= threshold).any(axis=0))
+        beside = np.zeros_like(shows)
+        beside[1:] |= shows[:-1]
+        beside[:-1] |= shows[1:]
+        groove = shows & beside  # over a stretch: a lone step showing it makes no groove
+        farthest = float(t[groove].max()) if groove.any() else start
         if float(t[seen].max()) - farthest > BORDER_TOLERANCE_PX + STEP_PX:
             missing.append((name, farthest))
     return missing

@@ -135,5 +135,5 @@ def test_import_of_a_folder_that_is_not_an_export(tmp_path: Path) -> None:
         with pytest.raises(RecordError, match=r"no session\.json"):
             rec.import_session(tmp_path)
         (tmp_path / "session.json").write_text('{"format": "other"}')
-        with pytest.raises(RecordError, match="not a station session export"):
+        with pytest.raises(RecordError, match="format: is not 'station-session'"):
             rec.import_session(tmp_path)

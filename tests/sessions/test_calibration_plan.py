@@ -26,6 +26,7 @@ from station.plans import (
     MoveOffset,
     PlanContext,
     PlanError,
+    ReferencePose,
     Step,
 )
 from station.plans.calibration import (
@@ -196,6 +197,9 @@ class _AlignPlan:
 
     def resume_prelude(self, params: _AlignParams, ctx: PlanContext, next_step: Step) -> list[Step]:
         return []
+
+    def reference_pose(self, params: _AlignParams, ctx: PlanContext) -> ReferencePose | None:
+        return None
 
     def analyse(
         self, params: _AlignParams, ctx: PlanContext, captures: Sequence[CaptureResult]

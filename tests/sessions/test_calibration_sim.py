@@ -82,6 +82,11 @@ def test_calibration_meets_its_targets_against_the_truth(session: tuple[Path, Se
     assert truth["max_abs_z"] <= 4.0, [p for p in truth["parameters"] if abs(p["z"]) > 4]
     assert truth["inside_95"] >= 0.75
     assert truth["identified"] == results["identified_count"]  # every identified one judged
+    # its gates: a clean calibration passes every fail check; the improvement is the one measured
+    checks = {c["name"]: c for c in results["checks"]}
+    assert all(c["passed"] for c in checks.values() if c["severity"] == "fail"), checks
+    rel = results["relative_error_um"]
+    assert checks["relative_error_after_before"]["value"] == pytest.approx(rel["after"] / rel["before"])
 
 
 @pytest.mark.timeout(300)

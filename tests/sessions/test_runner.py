@@ -262,11 +262,16 @@ def test_reconcile_marks_dead_sessions_interrupted(record: Record) -> None:
     assert RunnerState.INTERRUPTED not in ACTIVE_STATES
 
 
-def test_resume_skips_completed_steps_and_recaptures_the_reference(record: Record, fake: FakeStation) -> None:
-    r, _ = runner(record, fake, "repeatability", cycles=6, warmup_cycles=0, joints=[1])
-    r.subscribe(lambda e: r.abort() if e.type == "step_started" and e.data["index"] == 4 else None)
+def test_resume_skips_completed_tests_and_reruns_the_interrupted_one_from_its_start(
+    record: Record, fake: FakeStation
+) -> None:
+    r, _ = runner(record, fake, "repeatability", cycles=4, warmup_cycles=1, joints=[1, 3])
+    # J1: steps 0-5 (reference, warm-up, 4 cycles); J3: 6-11. Aborted as J3's second cycle starts.
+    r.subscribe(lambda e: r.abort() if e.type == "step_started" and e.data["index"] == 9 else None)
     assert r.run() is RunnerState.ABORTED
     sid = sid_of(r)
+    interrupted = {c.id for c in record.captures(sid) if c.meta["test"] == "J3"}
+    assert len(interrupted) == 2  # J3's reference and first cycle
     first = len(record.captures(sid))
     again = FakeStation()
     plan = get_plan("repeatability")
@@ -274,26 +279,40 @@ def test_resume_skips_completed_steps_and_recaptures_the_reference(record: Recor
     resumed = SessionRunner(
         record, plan, parse_params(plan, row.params["plan"]), devices=again.devices(), resume_session=row
     )
+    log = EventLog()
+    resumed.subscribe(log)
     assert resumed.run() is RunnerState.SUCCEEDED
     caps = sorted(record.captures(sid), key=lambda c: c.id)
-    # a new reference capture, then the three cycles that were missing
-    assert len(caps) == first + 1 + 3
-    assert [c.meta.get("resumed") for c in caps[first:]] == [True, None, None, None]
-    cycles = sorted(c.meta["cycle"] for c in caps if c.meta["role"] == "cycle")
-    assert cycles == list(range(6))
-    assert results_of(record, resumed)["tests"]["J1"]["n_cycles"] == 6
+    # J1 is whole and kept; J3 runs again from its start: its reference, warm-up and all four cycles
+    new = caps[first:]
+    assert [(c.meta["test"], c.meta["role"], c.meta.get("run")) for c in new] == [
+        ("J3", "reference", 1),
+        *[("J3", "cycle", 1)] * 4,
+    ]
+    assert [e.data["index"] for e in log.of("step_started")][1:3] == [6, 7]  # the reference, the warm-up
+    assert again.robot.calls_of("set_speed") == [(80,)]  # the session's speed, set again
+    (abandoned,) = log.of("abandoned")
+    assert set(abandoned.data["captures"]) == interrupted
+    assert abandoned.data["steps"] == [6, 7, 8]
+    test = results_of(record, resumed)["tests"]["J3"]
+    assert test["n_cycles"] == 4
+    assert test["partial"] is False
+    assert "excluded_captures" not in test
 
 
 def test_a_resumed_session_continues_its_progress_count(record: Record, fake: FakeStation) -> None:
-    """Progress counts the plan's steps over the whole session: a resumed run starts from the steps
-    already done, never from 0 of what is left (the page showed "0 / 143" after a resume)."""
-    r, _ = runner(record, fake, "repeatability", cycles=6, warmup_cycles=0, joints=[1])
-    r.subscribe(lambda e: r.abort() if e.type == "step_started" and e.data["index"] == 4 else None)
+    """Progress counts the plan's steps over the whole session: a resumed run starts from the steps that
+    stay done, never from 0 of what is left (the page showed "0 / 143" after a resume). A repeatability
+    reruns its interrupted test from that test's start, so the count continues from there."""
+    r, _ = runner(record, fake, "repeatability", cycles=3, warmup_cycles=0, joints=[1, 2])
+    r.subscribe(
+        lambda e: r.abort() if e.type == "step_started" and e.data.get("name") == "J2 cycle 2" else None
+    )
     assert r.run() is RunnerState.ABORTED
     planned = r.progress().total
     sid = sid_of(r)
-    done_before = sum(1 for s in record.steps(sid) if s.state == "done")
-    assert 0 < done_before < planned
+    j1_steps = sum(1 for s in record.steps(sid) if s.name.startswith("J1 "))
+    assert 0 < r.progress().done < planned
     plan = get_plan("repeatability")
     row = record.get_session(sid)
     resumed = SessionRunner(
@@ -306,14 +325,17 @@ def test_a_resumed_session_continues_its_progress_count(record: Record, fake: Fa
     log = EventLog()
     resumed.subscribe(log)
     assert resumed.run() is RunnerState.SUCCEEDED
+    (event,) = log.of("resumed")
+    kept = event.data["skipped_steps"]  # J1's steps: done, and not run again
+    assert kept == j1_steps > 0
     counts = [
         (e.data["progress"]["done"], e.data["progress"]["total"])
         for e in log.events
         if e.type == "step_finished"
     ]
-    assert (
-        counts[0][0] >= done_before
-    )  # the prelude's step (the reference again) does not count as the plan's
+    # the prelude's step (the reference again) does not count as the plan's; J2 counts on from J1's
+    assert counts[0] == (kept, planned)
+    assert counts[1] == (kept + 1, planned)
     assert {total for _, total in counts} == {planned}
     assert counts[-1] == (planned, planned)
     assert [d for d, _ in counts] == sorted(d for d, _ in counts)

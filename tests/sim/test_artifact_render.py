@@ -86,3 +86,73 @@ def test_salt_and_pepper_hits_the_requested_fraction() -> None:
     hit = clean != noisy
     assert hit.mean() == pytest.approx(0.004, rel=0.15)
     assert set(np.unique(noisy[hit])) <= {0.0, 255.0}
+
+
+def test_flecks_lie_in_the_paint_and_specks_anywhere_both_bright() -> None:
+    land = render_ideal(POSE, blur_sigma_px=1.0)
+    specks = PRESETS["hard-specks"]
+    flecked = replace(
+        BARE,
+        flecks_per_mm=specks.flecks_per_mm,
+        fleck_cluster_mm=specks.fleck_cluster_mm,
+        fleck_sigma_min_mm=specks.fleck_sigma_min_mm,
+        fleck_sigma_max_mm=specks.fleck_sigma_max_mm,
+        fleck_peak_min_dn=specks.fleck_peak_min_dn,
+        fleck_peak_max_dn=specks.fleck_peak_max_dn,
+        fleck_glint_peak_dn=specks.fleck_glint_peak_dn,
+    )
+    flecks = _frame(preset=flecked) - _frame(preset=BARE)
+    assert (flecks[land == 1.0] == 0).all()  # chips in the paint only
+    assert (flecks[land == 0.0] >= 150).sum() > 20  # their glints are bright (up to saturation)
+    assert flecks.min() >= 0
+    dusty = replace(
+        BARE,
+        specks_per_mm2=specks.specks_per_mm2,
+        speck_sigma_min_mm=specks.speck_sigma_min_mm,
+        speck_sigma_max_mm=specks.speck_sigma_max_mm,
+        speck_peak_min_dn=specks.speck_peak_min_dn,
+        speck_peak_max_dn=specks.speck_peak_max_dn,
+    )
+    dust = _frame(preset=dusty) - _frame(preset=BARE)
+    assert (dust[land == 1.0] > 30).sum() > 20  # on the lands
+    assert (dust[land == 0.0] > 100).sum() > 5  # and in the grooves
+    assert dust.min() >= 0
+
+
+def test_flecks_and_specks_move_with_the_artifact() -> None:
+    from sim._render_specks import fleck_points, speck_points
+
+    preset = replace(
+        PRESETS["hard-specks"],
+        read_noise_dn=0.0,
+        shot_noise_gain_dn_per_e=0.0,
+        salt_pepper_fraction=0.0,
+        vignetting=0.0,
+        texture_rms_dn=0.0,
+        scratches_per_mm2=0.0,
+        glints_per_mm=0.0,
+    )
+    pose = pose_for_center_px(300.0, 240.0)
+    a = _frame(pose, preset)
+    b = _frame(pose.displaced(0.07, -0.03), preset)  # 7 px right, 3 px up
+    diff = np.abs(b[20:-20, 27:-20] - a[23:-17, 20:-27])
+    assert diff.max() <= 1
+    assert not np.array_equal(a, b)
+    h = render(pose, preset=preset, rng=np.random.default_rng(0))[1].homography
+    moved = render(pose.displaced(0.07, -0.03), preset=preset, rng=np.random.default_rng(0))[1].homography
+    for points in (
+        lambda hh: fleck_points(
+            hh, texture_seed=0, groove_width_mm=ArtifactSpec().groove_width_mm, preset=preset
+        ),
+        lambda hh: speck_points(hh, texture_seed=0, preset=preset),
+    ):
+        assert len(points(h)) > 100
+        shift = points(moved) - points(h)
+        np.testing.assert_allclose(shift, np.broadcast_to([7.0, -3.0], shift.shape), atol=0.05)
+
+
+def test_the_benchmark_presets_have_no_flecks_or_specks() -> None:
+    # their frames are those rendered before flecks and specks existed (the benchmark sets unchanged)
+    for name in ("nominal", "hard"):
+        assert PRESETS[name].flecks_per_mm == 0
+        assert PRESETS[name].specks_per_mm2 == 0

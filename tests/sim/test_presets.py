@@ -9,9 +9,24 @@ import pytest
 from sim.presets import PRESETS, NoisePreset, get_preset
 
 
-def test_presets_are_nominal_v1_and_hard_v2() -> None:
-    assert sorted(PRESETS) == ["hard", "nominal"]
-    assert {p.name: p.version for p in PRESETS.values()} == {"nominal": 1, "hard": 2}
+def test_presets_are_nominal_v1_hard_v2_and_hard_specks_v1() -> None:
+    assert sorted(PRESETS) == ["hard", "hard-specks", "nominal"]
+    assert {p.name: p.version for p in PRESETS.values()} == {"nominal": 1, "hard": 2, "hard-specks": 1}
+
+
+def test_hard_specks_is_hard_with_flecks_and_specks() -> None:
+    hard, specks = PRESETS["hard"].to_dict(), PRESETS["hard-specks"].to_dict()
+    changed = {k for k in hard if hard[k] != specks[k]}
+    assert changed == {k for k in hard if k.startswith(("fleck", "speck"))} | {"name", "version"}
+    assert specks["flecks_per_mm"] > 0
+    assert specks["specks_per_mm2"] > 0
+
+
+def test_a_preset_written_before_flecks_and_specks_reads_as_having_none() -> None:
+    old = {k: v for k, v in PRESETS["hard"].to_dict().items() if not k.startswith(("fleck", "speck"))}
+    assert NoisePreset.from_dict(old) == PRESETS["hard"]
+    with pytest.raises(ValueError, match=r"missing keys \['blur_sigma_px'\]"):
+        NoisePreset.from_dict({k: v for k, v in old.items() if k != "blur_sigma_px"})
 
 
 @pytest.mark.parametrize(
@@ -39,7 +54,7 @@ def test_nominal_has_the_seed_snr_and_hard_is_harder() -> None:
 
 
 def test_unknown_preset_names_the_choices() -> None:
-    with pytest.raises(ValueError, match=r"'foggy'.*nominal, hard"):
+    with pytest.raises(ValueError, match=r"'foggy'.*nominal, hard, hard-specks"):
         get_preset("foggy")
 
 

@@ -108,11 +108,11 @@ def test_precise_mode_is_the_default_and_paper_mode_is_trial_7() -> None:
 def test_hard_preset_with_large_rotations_measures_every_image(tmp_path: Path) -> None:
     """Regression: the first pass's residual (it only steers the windows) rejected good edges."""
     from sim.imageset import render_random_set
-    from station.batch import measure_files
+    from station.compute import LocalBackend
     from station.imagesets import load_set
 
     s = load_set(render_random_set(tmp_path / "set", preset="hard", count=12, seed=9, max_rotation_deg=25.0))
-    results = list(measure_files(s.files, PRECISE))
+    results = list(LocalBackend().measure(s.files, PRECISE))
     assert [r.error for r in results if not r.ok] == []
     e = [
         np.hypot(*np.subtract(r.measurement.center_px, s.truth[Path(r.file).name].center_px))

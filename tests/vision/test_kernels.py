@@ -155,6 +155,8 @@ def test_the_cross_check_decides_as_the_reference_does(mode: str) -> None:
         "short left arm": cross(58.0, 240.0, 0.0, preset="nominal")[0],
         "two short arms": cross(575.0, 75.0, 12.0, preset="hard")[0],
         "turned": cross(330.0, 250.0, 39.0, preset="hard")[0],
+        "specks by the border": cross(338.0, 280.0, 0.0, preset="hard-specks")[0],
+        "stub": t_junction(320.0, 240.0, 0.0, "right", preset="hard-specks", ends_px=240.0),
     }
     verdicts = set()
     for name, image in images.items():
@@ -162,6 +164,47 @@ def test_the_cross_check_decides_as_the_reference_does(mode: str) -> None:
         _assert_same(out, f"{mode} {name}")
         verdicts.add(out["numpy"].split(":")[0] if isinstance(out["numpy"], str) else "measured")
     assert {"incomplete_cross", "measured"} <= verdicts
+
+
+@pytest.mark.skipif(not available(), reason="the compiled kernels were not built")
+def test_the_cross_checks_wall_contrasts_and_arm_ends_are_the_references() -> None:
+    """Every wall contrast (NaN where unseen) and every arm's end, exactly, on frames whose arms leave
+    the frame straight and aslant, with specks by the border, with a stub and a missing arm."""
+    from sim.artifact import pose_for_center_px, truth_for
+    from station.vision import EDGES
+    from station.vision._geometry import check_cross
+    from station.vision._sanity import _Groove, _missing_arms
+    from tests.hostile import cross, t_junction
+
+    frames = {
+        "specks by the border": (cross(338.0, 280.0, 0.0, preset="hard-specks")[0], (338.0, 280.0, 0.0)),
+        "aslant": (cross(150.0, 120.0, 33.0, preset="hard-specks")[0], (150.0, 120.0, 33.0)),
+        "T upper": (t_junction(300.0, 250.0, -8.0, "upper", preset="hard"), (300.0, 250.0, -8.0)),
+        "stub": (
+            t_junction(320.0, 240.0, 0.0, "left", preset="hard-specks", ends_px=200.0),
+            (320.0, 240.0, 0.0),
+        ),
+    }
+    for name, (image, (cx, cy, rotation)) in frames.items():
+        truth = truth_for(pose_for_center_px(cx, cy, rotation_deg=rotation))
+        lines = dict(zip(EDGES, (tuple(line) for line in np.asarray(truth.lines)), strict=True))
+        corners = np.asarray(truth.corners_px, dtype=np.float64)
+        _, widths = check_cross(lines, corners, image.shape, max_rotation_deg=40.0)
+        out = {}
+        for kernel in ("numpy", "c"):
+            with kernels(kernel):
+                small = image[2::4, 2::4].astype(np.float32)
+                coarse = image[4::8, 4::8].astype(np.float32)
+                grooves = [
+                    _Groove(small, coarse, angle, corners.mean(axis=0), width)
+                    for angle, width in ((rotation, widths[0]), (rotation + 90.0, widths[1]))
+                ]
+                out[kernel] = ([g.edges for g in grooves], _missing_arms(grooves[0], grooves[1], widths))
+        for ref, got in zip(out["numpy"][0], out["c"][0], strict=True):
+            assert np.isnan(ref).any(), name  # the border is in the samples
+            assert_array_equal(got, ref, err_msg=name)
+        assert out["c"][1] == out["numpy"][1], name
+        assert bool(out["numpy"][1]) == (name in ("T upper", "stub")), (name, out["numpy"][1])
 
 
 @pytest.mark.skipif(not available(), reason="the compiled kernels were not built")

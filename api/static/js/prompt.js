@@ -18,6 +18,10 @@ export function onAnswered(fn) {
 export const shownPrompt = () => shown;
 
 function moveText(d) {
+  if (d.purpose === "resume_check") {
+    const then = d.move === "overshoot" ? " First the overshoot before it, to take up the backlash." : "";
+    return `The last confirmed position again, after the interruption: the session continues only if the camera measures it where it did before.${then}`;
+  }
   if (d.move === "overshoot") {
     return "Overshoot before a backwards move: set the micrometers past the position first (this takes up the backlash); the next prompt is the position itself.";
   }
@@ -28,8 +32,10 @@ function moveText(d) {
 function title(p) {
   const d = p.details || {};
   if (d.position !== undefined && d.positions !== undefined) {
+    const which = `position ${num(Number(d.position))} of ${num(Number(d.positions))}`;
+    if (d.purpose === "resume_check") return `Operator: ${which} again (the resume's check)`;
     const what = d.move === "overshoot" ? "overshoot before" : "set";
-    return `Operator: ${what} position ${num(Number(d.position))} of ${num(Number(d.positions))}`;
+    return `Operator: ${what} ${which}`;
   }
   return "Operator";
 }

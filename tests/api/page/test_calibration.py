@@ -14,8 +14,10 @@ import pytest
 from tests.api.conftest import ServeFactory
 from tests.api.page.conftest import FINAL, api, open_page
 
-# the small configuration: two of the cell's artifacts, three camera turns, two joint solutions
-SMALL = {"placements": "[0, 1]", "turns_deg": "[-20, 70, 160]", "solutions": "2", "settle_s": "0"}
+# the small configuration: two of the cell's artifacts, three camera turns, four joint solutions (fewer
+# solutions identify too little: the calibrated model misses by more than the nominal one, and the
+# calibration's gate fails the session)
+SMALL = {"placements": "[0, 1]", "turns_deg": "[-20, 70, 160]", "solutions": "4", "settle_s": "0"}
 
 
 @pytest.mark.slow
@@ -52,7 +54,7 @@ def test_a_calibration_runs_from_the_form_to_its_results(make_served: ServeFacto
     with api(served.base) as c:
         doc = c.get(f"/api/v1/sessions/{sid}").json()
     assert doc["params"]["plan"]["placements"] == [0, 1]
-    assert doc["params"]["plan"]["solutions"] == 2
+    assert doc["params"]["plan"]["solutions"] == 4
     results = doc["results"]
     page.wait_for_selector("#results-table")
     table = {

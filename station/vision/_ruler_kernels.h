@@ -1,0 +1,13 @@
+/* The ruler measurement's compiled kernels (_ruler_kernels.c), part of the _ckernels module. */
+#ifndef STATION_RULER_KERNELS_H
+#define STATION_RULER_KERNELS_H
+#include <Python.h>
+
+PyObject *ruler_bins(PyObject *self, PyObject *args);
+PyObject *ruler_fit(PyObject *self, PyObject *args);
+
+#define RULER_KERNEL_METHODS                                                                              \
+    {"ruler_bins", ruler_bins, METH_VARARGS, "The ruler's pass over the pixels: each into its strip's bin."}, \
+    {"ruler_fit", ruler_fit, METH_VARARGS, "One least-squares round of every ruler phase window."},
+
+#endif
