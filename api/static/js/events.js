@@ -20,6 +20,8 @@ const TYPES = [
   "returned",
   "warning",
   "error",
+  "scale_calibration",
+  "abandoned",
 ];
 
 let source = null;

@@ -12,6 +12,11 @@ export function setUpHistory(fn) {
   onSelect = fn;
 }
 
+/** Show session `id` in the Session and Results panels (the operator chose it). */
+export function choose(id) {
+  select(id);
+}
+
 function select(id) {
   page.current = id;
   page.chosen = true;

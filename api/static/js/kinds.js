@@ -33,24 +33,42 @@ function validation(r) {
   return out;
 }
 
+/** A test's N: "11 of 30 (partial)" when it has fewer cycles than planned (its own RP, never the headline's). */
+function cyclesText(t, planned) {
+  const n = typeof t.n_cycles === "number" ? t.n_cycles : null;
+  if (n === null) return "—";
+  return t.partial || (typeof planned === "number" && n < planned) ? `${num(n)} of ${num(planned)} (partial)` : num(n);
+}
+
 function repeatability(r, params) {
-  const planned = params?.plan?.cycles;
   const tests = Object.entries(r.tests || {});
+  const plannedOf = (t) => t.planned_cycles ?? r.n_cycles ?? params?.plan?.cycles;
   const body = tests.map(([name, t]) => {
-    if (t.error) return [name, "—", "—", `not computed: ${t.error}`, "—", "—", "—"];
-    const n = typeof planned === "number" && (t.partial || t.n_cycles < planned) ? `${num(t.n_cycles)} of ${num(planned)} (partial)` : num(t.n_cycles);
+    const n = cyclesText(t, plannedOf(t));
+    if (t.error) return [name, "—", n, `not computed: ${t.error}`, "—", "—", "—"];
     const ci = Array.isArray(t.rp_ci95_mm) ? `${num(t.rp_ci95_mm[0], 5)} – ${num(t.rp_ci95_mm[1], 5)}` : "—";
     const motion = t.kind === "joint" ? `joint ${num(t.joint)}${typeof t.delta_deg === "number" ? `, ${t.delta_deg > 0 ? "+" : ""}${num(t.delta_deg, 1)}°` : ""}` : `${t.kind}${Array.isArray(t.targets_deg) ? `, ${t.targets_deg.length} targets` : ""}`;
     const headline = name in (r.rp_mm || {}) ? num(t.rp_mm, 5) : `${num(t.rp_mm, 5)} (partial: not in RP)`;
     return [name, motion, n, headline, ci, num(t.l_bar_mm, 5), num(t.s_l_mm, 5)];
   });
-  const summary = [["cycles per test", num(r.n_cycles)]];
+  const whole = Object.entries(r.rp_mm || {});
+  const partial = tests.filter(([name, t]) => t.partial || !(name in (r.rp_mm || {})));
+  const summary = [
+    ["RP (whole tests only)", whole.length ? whole.map(([name, v]) => `${name} ${num(v, 5)} mm`).join(", ") : "none: no test has every planned cycle"],
+    ["cycles planned per test", num(r.n_cycles)],
+  ];
+  if (partial.length) {
+    summary.push(["partial tests (their own RP, not in the headline)", partial.map(([name, t]) => `${name}: N ${cyclesText(t, plannedOf(t))}`).join("; ")]);
+  }
   if (r.speed_pct !== undefined && r.speed_pct !== null) summary.push(["speed", `${num(r.speed_pct)} %`]);
   if (r.load_kg !== undefined && r.load_kg !== null) summary.push(["load", `${num(r.load_kg)} kg`]);
-  return [
-    kvTable("results-table", summary, "Pose repeatability (ISO 9283: RP = l̄ + 3 Sₗ)"),
-    gridTable("tests-table", ["test", "motion", "N", "RP (mm)", "95 % interval (mm)", "l̄ (mm)", "Sₗ (mm)"], body, "Per test"),
-  ];
+  const grid = gridTable("tests-table", ["test", "motion", "N", "RP (mm)", "95 % interval (mm)", "l̄ (mm)", "Sₗ (mm)"], body, "Per test");
+  grid.querySelectorAll("tbody tr").forEach((tr, i) => {
+    const [name, t] = tests[i];
+    tr.dataset.test = name;
+    tr.dataset.partial = String(Boolean(t.partial || !(name in (r.rp_mm || {}))));
+  });
+  return [kvTable("results-table", summary, "Pose repeatability (ISO 9283: RP = l̄ + 3 Sₗ)"), grid];
 }
 
 function calibration(r) {
@@ -126,16 +144,46 @@ export function hasTable(kind, r) {
   return false;
 }
 
-/** The gates (`results.checks`: name, passed, value, limit, severity, message), when the results have them. */
+/** What a resume of a session of `kind` does (README, Sessions): no population ever mixes two runs. */
+export function resumeRule(kind) {
+  if (kind === "repeatability") {
+    return "it reruns the interrupted test from its start (the interrupted attempt's captures stay in the record, never in RP); the tests already done are kept.";
+  }
+  if (kind === "validation") {
+    return "it first captures the last confirmed position again and goes on only if it measures where it did before.";
+  }
+  if (kind === "calibration") return "it starts again at the interrupted configuration's start.";
+  return "it goes on after its last completed step.";
+}
+
+const failing = (c) => !c.passed && c.severity !== "warn";
+
+/** The `fail` checks these results did not pass (a session that has any ended failed by its gates). */
+export function failedChecks(checks) {
+  return Array.isArray(checks) ? checks.filter(failing) : [];
+}
+
+function limitText(limit) {
+  if (Array.isArray(limit)) return `${num(limit[0], 5)} – ${num(limit[1], 5)}`;
+  return num(limit, 5);
+}
+
+/** The gates (`results.checks`: name, passed, value, limit, severity, message), when the results have them:
+ * each row's verdict in words and in `data-verdict` (`passed`, `warn`, `fail`), failed rows first. */
 export function checksTable(checks) {
   if (!Array.isArray(checks) || !checks.length) return null;
-  const body = checks.map((c) => {
-    const verdict = c.passed ? "passed" : c.severity === "warn" ? "warning" : "FAILED";
-    return [c.name, verdict, num(c.value), num(c.limit), c.message || ""];
-  });
-  const box = gridTable("checks-table", ["check", "verdict", "value", "limit", "message"], body, "Checks");
+  const verdict = (c) => (c.passed ? "passed" : c.severity === "warn" ? "warn" : "fail");
+  const order = { fail: 0, warn: 1, passed: 2 };
+  const sorted = [...checks].sort((a, b) => order[verdict(a)] - order[verdict(b)]);
+  const words = { passed: "passed", warn: "warning", fail: "FAILED" };
+  const body = sorted.map((c) => [c.name, words[verdict(c)], num(c.value, 5), limitText(c.limit), c.message || ""]);
+  const failed = sorted.filter(failing).length;
+  const warned = sorted.filter((c) => verdict(c) === "warn").length;
+  const caption = `Checks against what is physically possible: ${failed ? `${failed} failed` : "none failed"}${warned ? `, ${warned} warning${warned === 1 ? "" : "s"}` : ""}`;
+  const box = gridTable("checks-table", ["check", "verdict", "value", "limit", "message"], body, caption);
   box.querySelectorAll("tbody tr").forEach((tr, i) => {
-    tr.dataset.verdict = checks[i].passed ? "passed" : checks[i].severity === "warn" ? "warn" : "fail";
+    tr.dataset.verdict = verdict(sorted[i]);
+    tr.dataset.check = sorted[i].name;
   });
   return box;
 }

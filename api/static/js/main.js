@@ -12,6 +12,7 @@ import { onAnswered, setUpPrompt, showPrompt } from "./prompt.js";
 import { setUpResults, showResults } from "./results.js";
 import { renderState, say, setUpSession, showSession, tick, updateControls } from "./session.js";
 import { canRead, page } from "./state.js";
+import { loadScale, setUpScale, updateScaleControls } from "./scale.js";
 import { setUpStation, showDevices, showRobot, updateRobotControls } from "./station.js";
 import { $, FINAL } from "./util.js";
 
@@ -79,8 +80,10 @@ async function refresh() {
     if (running !== page.running) {
       page.running = running;
       sessionChanged();
+      loadScale(true); // a validation that passed its checks writes the scale calibration as it ends
     }
     showRobot(station);
+    loadScale();
     await loadPlans();
     setKinds(station.plans.filter((n) => page.plans.has(n)));
     const list = await api("GET", "/sessions?limit=20");
@@ -93,6 +96,7 @@ async function refresh() {
     if (s && FINAL.has(s.state) && page.running === s.id) {
       page.running = null;
       sessionChanged();
+      loadScale(true);
     }
     showSession(s);
     showPrompt(await api("GET", "/prompt"));
@@ -125,6 +129,7 @@ onEvent((type, e) => {
     return;
   }
   if (type === "image_captured") return; // its measurement follows
+  if (type === "scale_calibration") loadScale(true);
   soon();
 });
 
@@ -134,6 +139,7 @@ onConnection("lost", () => {
 });
 onConnection("restored", async () => {
   await checkAccess();
+  loadScale(true);
   await refresh();
   idleTick(true);
 });
@@ -146,7 +152,11 @@ document.addEventListener("DOMContentLoaded", async () => {
   setUpResults();
   setUpHistory(refresh);
   setUpStation(refresh);
-  setUpSession(refresh, updateRobotControls);
+  setUpScale();
+  setUpSession(refresh, () => {
+    updateRobotControls();
+    updateScaleControls();
+  });
   onAnswered(refresh);
   await checkAccess();
   await refresh();

@@ -3,7 +3,7 @@
 // size on click) and the downloads that exist for it.
 
 import { API, api } from "./api.js";
-import { checksTable, hasTable, resultTables } from "./kinds.js";
+import { checksTable, failedChecks, hasTable, resultTables, resumeRule } from "./kinds.js";
 import { $, FINAL, RESUMABLE, el } from "./util.js";
 
 let shownKey = null;
@@ -12,6 +12,9 @@ function status(s) {
   const r = s.results || {};
   const partial = Object.values(r.tests || {}).some((t) => t && t.partial) || r.partial === true;
   const has = Object.keys(r).length > 0;
+  // the gates decided the state only when every step of the plan ran (else they judge partial results)
+  const ran = s.progress && s.progress.total > 0 && s.progress.done >= s.progress.total;
+  const failed = ran ? failedChecks(r.checks || r[r.kind]?.checks) : [];
   const box = el("div", { className: `status status-${s.state}`, id: "results-state" });
   if (s.state === "succeeded") {
     box.append(el("p", {}, `Session ${s.id} succeeded.`));
@@ -19,9 +22,16 @@ function status(s) {
     return box;
   }
   box.append(el("p", {}, el("strong", {}, `Session ${s.id} ${s.state}`), s.error ? `: ${s.error}` : "."));
+  if (failed.length) {
+    // the gates refused what it measured: nothing is hidden, and nothing of it is used
+    const names = failed.map((c) => c.name).join(", ");
+    box.dataset.gates = "failed";
+    box.append(el("p", {}, `Its results failed ${failed.length === 1 ? "a check" : `${failed.length} checks`} (${names}, marked below): they cannot be right, so they are kept and shown but not used${s.kind === "validation" ? " (the station's scale calibration was not written)" : ""}. Fix what the message says, then start a new session.`));
+    return box;
+  }
   box.append(el("p", {}, has ? "Its results below are partial: what it measured before it ended." : "It has no results: it ended before enough was measured."));
   if (RESUMABLE.has(s.state)) {
-    box.append(el("p", {}, "Resume (above) continues it after its last completed step; the report keeps what it captured."));
+    box.append(el("p", {}, `Resume (above) continues it: ${resumeRule(s.kind)} The report keeps what it captured.`));
   }
   return box;
 }

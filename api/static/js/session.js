@@ -4,6 +4,7 @@
 
 import { api } from "./api.js";
 import { formInputs, formParams, showRefusal } from "./form.js";
+import { resumeRule } from "./kinds.js";
 import { updatePromptControls } from "./prompt.js";
 import { canAct, page } from "./state.js";
 import { $, FINAL, RESUMABLE, duration } from "./util.js";
@@ -78,18 +79,6 @@ export function tick() {
   if (s && page.connection === "ok" && !FINAL.has(s.state)) $("progress-text").textContent = progressText(s);
 }
 
-/** What Resume will do: each kind's resume rule (README, Sessions), so that no population mixes two runs. */
-function resumeNote(kind) {
-  if (kind === "repeatability") {
-    return "Resume continues this session: it reruns the interrupted test from its start (the interrupted attempt's captures stay in the record, never in RP); the tests already done are kept.";
-  }
-  if (kind === "validation") {
-    return "Resume continues this session: it first captures the last confirmed position again and goes on only if it measures where it did before.";
-  }
-  if (kind === "calibration") return "Resume continues this session at the start of the interrupted configuration.";
-  return "Resume continues this session after its last completed step.";
-}
-
 /** Enable what the API would accept now; say why the rest is off. */
 export function updateControls() {
   const s = page.session;
@@ -109,7 +98,7 @@ export function updateControls() {
   if (page.connection !== "ok") note = "The service is unreachable: every control is off until it answers again.";
   else if (!page.access?.authenticated) note = "Read-only: log in with the URL that station serve prints to control the station.";
   else if (RESUMABLE.has(state) && page.running) note = `Resume is possible once session ${page.running} has ended.`;
-  else if (RESUMABLE.has(state)) note = resumeNote(s.kind);
+  else if (RESUMABLE.has(state)) note = `Resume continues this session: ${resumeRule(s.kind)}`;
   else if (state === "awaiting_operator") {
     note = "Pause and Stop take effect at the end of this step, once its prompts are answered; Abort stops now.";
   }

@@ -54,29 +54,74 @@ export function updateRobotControls() {
   $("to-reference").hidden = !show;
   $("to-reference").disabled = !(show && canAct());
   if (!show) $("to-reference-confirm").hidden = true;
-  for (const id of ["to-reference-yes", "to-reference-no"]) $(id).disabled = !canAct();
+  $("to-reference-no").disabled = !canAct();
+  // Move now only once the route is read and refuses nothing
+  $("to-reference-yes").disabled = !(canAct() && $("to-reference-route").dataset.route === "ok");
+}
+
+/** The route GET /station/robot plans from where the arm is: its moves, or every problem the driver's
+ * checks find in it (then nothing can be sent: Move now stays off). */
+function showRoute(arm) {
+  const route = arm.route || { moves: [], problems: [] };
+  const box = $("to-reference-route");
+  const yes = $("to-reference-yes");
+  if (route.problems.length) {
+    box.dataset.route = "refused";
+    box.replaceChildren(
+      el("p", { className: "error" }, `The route is refused by the driver's checks; nothing would move (${route.problems.length} problem${route.problems.length === 1 ? "" : "s"}):`),
+      el("ul", { id: "to-reference-problems" }, ...route.problems.map((p) => el("li", {}, p))),
+      el("p", {}, "Jog the arm clear with the pendant (the route goes up through the lift pose), then try again."),
+    );
+    yes.disabled = true;
+    return;
+  }
+  const n = route.moves.length;
+  box.dataset.route = n ? "ok" : "none";
+  if (!n) {
+    box.replaceChildren(el("p", {}, "The arm is already at its reference pose: nothing to move."));
+    yes.disabled = true;
+    return;
+  }
+  box.replaceChildren(
+    el("p", {}, `From joints ${joints(arm.position?.commanded_joints_deg)}°: ${n} move${n === 1 ? "" : "s"}${route.via_lift ? ", up through the lift pose (upper arm and forearm upright), across and down" : ", direct"}, each within the driver's joint step:`),
+    el("ol", { id: "to-reference-moves", className: "mono" }, ...route.moves.map((q) => el("li", {}, `${joints(q)}°`))),
+  );
+  yes.disabled = !canAct();
+}
+
+async function offerRoute() {
+  $("to-reference-confirm").hidden = false;
+  $("to-reference-yes").disabled = true;
+  $("to-reference-route").dataset.route = "reading";
+  $("to-reference-route").replaceChildren(el("p", { className: "muted" }, "reading the route from where the arm is…"));
+  $("to-reference-no").focus();
+  try {
+    showRoute(await api("GET", "/station/robot"));
+  } catch (e) {
+    $("to-reference-route").dataset.route = "unknown";
+    $("to-reference-route").replaceChildren(el("p", { className: "error" }, `The route cannot be read: ${e.message}`));
+  }
 }
 
 async function toReference() {
   $("to-reference-confirm").hidden = true;
+  $("to-reference").disabled = true;
   $("robot-message").textContent = "moving to the reference pose…";
   try {
-    const reply = await api("POST", "/station/robot/to-reference", undefined, { timeoutMs: 300000 });
+    const reply = await api("POST", "/station/robot/to-reference", undefined, { timeoutMs: 600000 });
     const moves = Array.isArray(reply?.moves) ? reply.moves.length : null;
-    const final = reply?.final_joints_deg || reply?.joints_deg || reply?.pose?.joints_deg || reply?.final_pose?.joints_deg;
+    const final = reply?.final_pose?.joints_deg;
     $("robot-message").textContent = `at the reference pose${moves !== null ? ` after ${moves} move${moves === 1 ? "" : "s"}` : ""}${final ? `: joints ${joints(final)}°` : ""}`;
   } catch (e) {
-    $("robot-message").textContent = `not moved: ${e.message}`;
+    const problems = Array.isArray(e.doc?.problems) ? ` (${e.doc.problems.join("; ")})` : "";
+    $("robot-message").textContent = `not moved to the reference pose: ${e.message}${problems}`;
   }
   refresh();
 }
 
 export function setUpStation(refreshFn) {
   refresh = refreshFn;
-  $("to-reference").addEventListener("click", () => {
-    $("to-reference-confirm").hidden = false;
-    $("to-reference-no").focus();
-  });
+  $("to-reference").addEventListener("click", offerRoute);
   $("to-reference-yes").addEventListener("click", toReference);
   $("to-reference-no").addEventListener("click", () => {
     $("to-reference-confirm").hidden = true;
