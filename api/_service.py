@@ -551,8 +551,9 @@ class StationService:
             raise ConflictError(f"session {row.id} is {row.state}: its report is written once it has ended")
         folder = self.record.data_dir / "reports" / row.id
         stamp = folder / ".written"
-        # one writer at a time: two pages asking for a new report at once wrote the same temporary files
-        # and one of them failed (500); the second finds the report written
+        # one writer at a time in this process, so that a report is written once: the second of two
+        # pages asking at once finds it written (each file's temporary name is unique, so writers in
+        # other processes, such as ``station report``, cannot collide with this one either)
         with self._report_lock:
             if not stamp.exists() or stamp.read_text() != row.updated_at.isoformat():
                 write_report(report_document(row), folder)
