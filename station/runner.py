@@ -1192,21 +1192,9 @@ def camera_height_function(devices: StationDevices | None) -> Callable[[Sequence
     settings (``table_z_mm``, ``camera_offset_mm``) and the nominal kinematics; ``None`` when unknown."""
     if devices is None or devices.config.robot is None:
         return None
-    safety = devices.config.robot.safety
-    if "table_z_mm" not in safety or "camera_offset_mm" not in safety:
-        return None
-    import numpy as np
+    from station.plans._recorded import camera_height_function as from_safety
 
-    from station.kinematics import Kinematics
-
-    kin = Kinematics()
-    offset = np.array([*safety["camera_offset_mm"], 1.0], dtype=np.float64)
-    z0 = float(safety["table_z_mm"])
-
-    def height(joints: Sequence[float]) -> float:
-        return float((kin.forward(joints) @ offset)[2]) - z0
-
-    return height
+    return from_safety(devices.config.robot.safety)
 
 
 def calibration_cell(devices: StationDevices | None, measure_params: MeasureParams) -> Any:
