@@ -356,17 +356,17 @@ class StationService:
             return {"ok": False, "error": exc.message, "code": exc.code}
 
     def latest_capture_png(self, session_id: str, *, overlay: bool = True) -> Picture:
-        """The session's latest stored capture with its measurement drawn (the live view in a session)."""
+        """The session's latest stored capture with its measurement drawn (the live view in a session);
+        two rows read, however many the session holds."""
         row = self.record.get_session(session_id)
-        captures = self.record.captures(row.id)
-        if not captures:
+        cap = self.record.latest_capture(row.id)  # the newest stored: a resume's prelude is not last
+        if cap is None:
             raise ConflictError(f"session {row.id} has no capture yet")
-        cap = captures[-1]
         image = self.record.load_image(cap)
         result = None
         if overlay:
-            found = [m for m in self.record.measurements(row.id) if m.capture_id == cap.id]
-            result = found[-1].result if found else None
+            found = self.record.latest_measurement(row.id, cap.id)
+            result = found.result if found is not None else None
         return Picture(overlay_png(image, result), result)
 
     # ------------------------------------------------------------------ the arm outside sessions
