@@ -1,6 +1,8 @@
 """Screenshots of the operator page, for a person to look at (issue 20): at 1280x720 and 800 px wide, the
-idle page, a micrometer prompt, a running session, each kind's results (validation, repeatability,
-calibration, sweep, re-analysis, and a failed session) and the lost-connection banner.
+idle page (with the scale calibration and its history), a micrometer prompt, a running session, each
+kind's results (validation, repeatability, calibration, sweep, re-analysis, a session refused at
+pre-flight, a validation its gates failed, a repeatability with partial tests), the route to the
+reference pose offered after a calibration, and the lost-connection banner.
 
 ``python -m bench.page_screens [--out out/page] [--cycles 10]``: a service on the simulated station with
 ``--manual-prompts`` (this script answers the validation's prompts through the API, as a person does in
@@ -37,7 +39,9 @@ ARGS = [
 ]
 VIEWPORTS = {"1280": {"width": 1280, "height": 720}, "800": {"width": 800, "height": 900}}
 PATTERN = [[0.0, 0.0], [254.0, 0.0], [254.0, 254.0], [0.0, 254.0]]
-SMALL_CALIBRATION = {"placements": [0, 1], "turns_deg": [-20.0, 70.0, 160.0], "solutions": 2, "settle_s": 0.0}
+# four joint solutions: with two, the calibrated model misses by more than the nominal one and the
+# calibration's gate fails the session
+SMALL_CALIBRATION = {"placements": [0, 1], "turns_deg": [-20.0, 70.0, 160.0], "solutions": 4, "settle_s": 0.0}
 FINAL = {"stopped", "aborted", "failed", "succeeded", "interrupted"}
 
 
@@ -89,6 +93,19 @@ def run(c: httpx.Client, kind: str, params: dict[str, Any], *, answer: bool = Fa
     return sid
 
 
+def run_partial(c: httpx.Client, params: dict[str, Any], steps: int) -> str:
+    """A repeatability aborted once ``steps`` of its steps are done: its later tests are partial."""
+    r = c.post("/api/v1/sessions", json={"kind": "repeatability", "params": params})
+    r.raise_for_status()
+    sid: str = r.json()["id"]
+    while c.get(f"/api/v1/sessions/{sid}").json()["progress"]["done"] < steps:
+        time.sleep(0.05)
+    c.post(f"/api/v1/sessions/{sid}/actions", json={"action": "abort"}).raise_for_status()
+    while c.get(f"/api/v1/sessions/{sid}").json()["state"] not in FINAL:
+        time.sleep(0.1)
+    return sid
+
+
 def wait_for(page: Any, script: str, arg: Any = None, timeout_ms: int = 120_000) -> None:
     page.wait_for_function(script, arg=arg, timeout=timeout_ms)
 
@@ -120,6 +137,14 @@ def main() -> None:
             refused = {"kind": "repeatability", "params": {"joints": [], "sequences": far}}
             assert c.post("/api/v1/sessions", json=refused).status_code == 422
             sessions["failed"] = c.get("/api/v1/sessions", params={"limit": 1}).json()["items"][0]["id"]
+            # a second validation (the scale calibration's history has two) and one its gates refuse
+            run(c, "validation", {"pattern_um": PATTERN}, answer=True)
+            tight = {"pattern_um": PATTERN, "mean_limit_um": 0.01, "max_limit_um": 0.02}
+            sessions["gates-failed"] = run(c, "validation", tight, answer=True)
+            cycles = args.cycles
+            sessions["partial"] = run_partial(
+                c, {"cycles": cycles, "joints": [1, 2, 3], "warmup_cycles": 0}, steps=cycles + 4
+            )
             timings["sessions_s"] = round(time.monotonic() - t0, 1)
 
             t1 = time.monotonic()
@@ -194,6 +219,14 @@ def main() -> None:
                             sid,
                         )
                     shot(f"results-{kind}", full=True)
+
+                # the arm away from its reference pose (after the calibration): the route, before moving
+                for page in pages.values():
+                    wait_for(page, "!document.querySelector('#to-reference').hidden")
+                    page.click("#to-reference")
+                    wait_for(page, "document.querySelector('#to-reference-route').dataset.route === 'ok'")
+                    page.evaluate("document.querySelector('#robot-section').scrollIntoView()")
+                shot("to-reference")
 
                 # the service goes away under the open pages: the banner
                 server.should_exit = True
