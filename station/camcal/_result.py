@@ -11,8 +11,8 @@ from station.camera_model import CameraIntrinsics
 
 __all__ = ["AGREE_SIGMA", "FocalScale", "IntrinsicsCalibration", "ViewDiagnostics"]
 
-AGREE_SIGMA = 2.0
-"""Tilted views and heights closer than this many combined standard uncertainties are averaged."""
+AGREE_SIGMA = 3.0
+"""Tilted views further than this many combined standard uncertainties from the heights are reported."""
 
 
 @dataclass(frozen=True)
@@ -53,15 +53,14 @@ class ViewDiagnostics:
 
 @dataclass(frozen=True)
 class FocalScale:
-    """Where the focal length came from: the tilted views (Zhang's method), the heights, or both.
+    """Where the focal length came from: the tilted views (Zhang's method) or the heights.
 
     ``tilted_fx_px`` / ``tilted_u_rel``: what the fit with every intrinsic free gave, with OpenCV's
     uncertainty; ``heights``: the scale from views square to the target at known heights (None without
-    readings). When the two agree within ``AGREE_SIGMA`` combined standard uncertainties, the focal length
-    is their weighted mean; when they do not, the tilted views are taken to be biased by the blur across
-    them and the heights' alone is used. ``scale``: the fitted focal lengths were divided by it
-    (``kappa`` weighted with 1); ``u_rel``: the focal length's relative standard uncertainty. The
-    aspect ratio stays the fit's either way.
+    readings). With heights, the focal lengths are the fit's divided by ``heights.kappa`` (the aspect
+    ratio stays the fit's) and the tilted views' only check them: the blur across tilted views biases
+    them beyond what their uncertainty says whenever the depth of field is shallow (``TARGET.md``), and
+    nothing in the views tells how shallow it is, so they are never averaged in.
     """
 
     tilted_fx_px: float
@@ -69,32 +68,18 @@ class FocalScale:
     heights: HeightScale | None
 
     @property
-    def combined(self) -> bool:
-        z = self.disagreement_sigma
-        return z is not None and abs(z) <= AGREE_SIGMA
-
-    @property
     def source(self) -> str:
-        if self.heights is None:
-            return "tilted views"
-        return "tilted views and heights" if self.combined else "heights"
+        return "tilted views" if self.heights is None else "heights"
 
     @property
     def scale(self) -> float:
-        if self.heights is None:
-            return 1.0
-        if not self.combined:
-            return self.heights.kappa
-        w_t, w_h = self.tilted_u_rel**-2, self.heights.u_rel**-2
-        return (w_t + w_h * self.heights.kappa) / (w_t + w_h)
+        """The fitted focal lengths were divided by this."""
+        return 1.0 if self.heights is None else self.heights.kappa
 
     @property
     def u_rel(self) -> float:
-        if self.heights is None:
-            return self.tilted_u_rel
-        if not self.combined:
-            return self.heights.u_rel
-        return float((self.tilted_u_rel**-2 + self.heights.u_rel**-2) ** -0.5)
+        """The focal length's relative standard uncertainty."""
+        return self.tilted_u_rel if self.heights is None else self.heights.u_rel
 
     @property
     def disagreement_sigma(self) -> float | None:
@@ -183,12 +168,12 @@ class IntrinsicsCalibration:
         """What is worth knowing though it does not fail the calibration."""
         out = []
         z = self.focal.disagreement_sigma
-        if z is not None and not self.focal.combined:
+        if z is not None and abs(z) > AGREE_SIGMA:
             assert self.focal.heights is not None
             out.append(
                 f"the tilted views' focal length is {self.focal.heights.kappa - 1.0:+.3%} from the heights' "
                 f"({z:+.1f} sigma): the blur across tilted views moves their corners (a shallow depth of "
-                "field); the heights' alone is used. Stop the lens down to bring them together"
+                "field); the heights' is used. Stop the lens down to bring them together"
             )
         return out
 

@@ -24,7 +24,9 @@ def test_render_target_writes_a_frame_the_detector_reads_and_its_truth(
     assert "corners in the frame" in captured.err
     truth = json.loads(truth_file.read_text())
     assert (truth["camera_model"]["image_width"], truth["camera_model"]["image_height"]) == (640, 480)
-    found = detect_target(cv2.imread(str(out), cv2.IMREAD_UNCHANGED))
+    frame = cv2.imread(str(out), cv2.IMREAD_UNCHANGED)
+    assert frame is not None
+    found = detect_target(frame)
     expected = np.array([truth["corners_px"][i] for i in found.ids], dtype=float)
     assert np.hypot(*(found.corners_px - expected).T).max() < 0.06
 
