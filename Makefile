@@ -50,6 +50,7 @@ bench: setup
 	$(BIN)/python -m bench.service_load
 	$(BIN)/python -m bench.calibration_bench --seeds 10
 	$(BIN)/python -m bench.calibration_session_bench
+	$(BIN)/python -m bench.camcal_bench
 
 clean:
 	rm -rf $(VENV) $(OUT) .mypy_cache .ruff_cache .pytest_cache
