@@ -56,6 +56,7 @@ bench: setup
 	$(BIN)/python -m bench.calibration_bench --seeds 10
 	$(BIN)/python -m bench.calibration_session_bench
 	$(BIN)/python -m bench.cross_check_bench
+	$(BIN)/python -m bench.camcal_bench
 
 clean:
 	rm -rf $(VENV) $(OUT) .mypy_cache .ruff_cache .pytest_cache
