@@ -14,6 +14,7 @@ from station.commands import SubParsers
 from station.commands._common import SMALL_FILE_MAX_BYTES, add_measure_options, finite_float, params_from_args
 from station.imageio import (
     DEFAULT_MAX_BYTES,
+    DEFAULT_MAX_DECODED_BYTES,
     DEFAULT_MAX_PIXELS,
     ImageFileError,
     ImageLimits,
@@ -59,6 +60,14 @@ def register(sub: SubParsers) -> None:
         metavar="MPX",
         help=f"refuse images whose header declares more pixels (default {DEFAULT_MAX_PIXELS / 1e6:g} Mpx)",
     )
+    p.add_argument(
+        "--max-decoded-mb",
+        type=finite_float("--max-decoded-mb", positive=True),
+        default=DEFAULT_MAX_DECODED_BYTES / 2**20,
+        metavar="MB",
+        help="refuse images whose header declares a larger decoded size, width x height x channels x bytes "
+        f"per sample (MiB; default {DEFAULT_MAX_DECODED_BYTES // 2**20})",
+    )
     add_measure_options(p)
     p.set_defaults(func=lambda args: run(p, args))
 
@@ -80,7 +89,9 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
             params = params.with_values(groove_width_mm=cal.groove_width_mm)
         calibration = cal.record(args.scale_calibration)
     limits = ImageLimits(
-        max_bytes=max(1, int(args.max_file_mb * 2**20)), max_pixels=max(1, int(args.max_megapixels * 1e6))
+        max_bytes=max(1, int(args.max_file_mb * 2**20)),
+        max_pixels=max(1, int(args.max_megapixels * 1e6)),
+        max_decoded_bytes=max(1, int(args.max_decoded_mb * 2**20)),
     )
     jobs = args.jobs if args.jobs is not None else default_jobs()
     results: list[FileResult] = []
