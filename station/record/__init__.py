@@ -7,7 +7,13 @@ Images are lossless PNG files beside the database, written atomically before the
 ``station_lock`` keeps one session at a time per station, across processes.
 """
 
-from station.record._errors import RecordError, RecordNotFoundError, RecordWriteError, SessionLockError
+from station.record._errors import (
+    RecordError,
+    RecordNotFoundError,
+    RecordUnavailableError,
+    RecordWriteError,
+    SessionLockError,
+)
 from station.record._json import MAX_POINTS, params_hash, strip_point_arrays
 from station.record._lock import lock_holder, station_lock
 from station.record._record import Record, capture_path
@@ -21,6 +27,7 @@ __all__ = [
     "Record",
     "RecordError",
     "RecordNotFoundError",
+    "RecordUnavailableError",
     "RecordWriteError",
     "SessionLockError",
     "SessionRow",

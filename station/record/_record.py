@@ -24,7 +24,7 @@ import sqlalchemy as sa
 
 from station.record import _export, _images
 from station.record._engine import BEGIN_OPTION, create_engine, redact, upgrade
-from station.record._errors import RecordError, RecordNotFoundError
+from station.record._errors import RecordError, RecordNotFoundError, error_of
 from station.record._json import json_object, params_hash, strip_point_arrays
 from station.record._rows import STEP_STATES, CaptureRow, EventRow, MeasurementRow, SessionRow, StepRow
 from station.record._schema import captures, events, measurements, new_id, sessions, steps
@@ -190,7 +190,7 @@ class Record:
                 with conn.begin():
                     yield conn
         except sa.exc.DBAPIError as exc:
-            raise RecordError(
+            raise error_of(exc)(
                 f"cannot write to the record at {self.url}: {exc.orig}; nothing of this change was "
                 "recorded (check free space and the database server)"
             ) from exc
@@ -201,7 +201,7 @@ class Record:
             with self._engine.connect() as conn:
                 yield conn
         except sa.exc.DBAPIError as exc:
-            raise RecordError(f"cannot read the record at {self.url}: {exc.orig}") from exc
+            raise error_of(exc)(f"cannot read the record at {self.url}: {exc.orig}") from exc
 
     def _now(self) -> datetime:
         now = self._clock()
