@@ -166,8 +166,8 @@ class BodyDeadline:
                 return {"type": "http.disconnect"}
             if message["type"] == "http.disconnect":
                 answered = True
-                log.info("%s %s: the client left before its request body was complete", scope["method"],
-                         scope["path"])  # fmt: skip
+                what = f"{scope['method']} {scope['path']}"
+                log.info("%s: the client left before its request body was complete", what)
             elif not message.get("more_body", False):
                 complete = True
             return message

@@ -5,7 +5,8 @@ from __future__ import annotations
 import csv
 import io
 import re
-from typing import Any, Literal
+from collections.abc import Callable
+from typing import Any, Literal, TypeVar
 
 from fastapi import APIRouter, Depends, Query, Request
 from fastapi.concurrency import run_in_threadpool
@@ -31,9 +32,18 @@ router = APIRouter(prefix="/api/v1/sessions")
 MAX_IMPORT_BYTES = 512 * 1024 * 1024
 _FIGURE_NAME = re.compile(r"[A-Za-z0-9_.-]{1,100}")
 ZIP_TYPES = ("application/zip",)
+T = TypeVar("T")
 
 #: The refusals of every route of one session.
 ONE = (401, 403, 404, 422, 503)
+
+
+async def quick(request: Request, read: Callable[..., T], *args: Any, **kwargs: Any) -> T:
+    """``read(*args, **kwargs)`` on the event loop when the record is SQLite's file (a millisecond: the
+    thread pool's hop costs more), else in the thread pool."""
+    if service_of(request).record_is_local:
+        return read(*args, **kwargs)
+    return await run_in_threadpool(read, *args, **kwargs)
 
 
 SESSION_LINKS = {
@@ -91,8 +101,9 @@ async def list_sessions(
     request: Request, limit: int = Query(50, ge=1, le=1000), offset: int = Query(0, ge=0, le=10**9)
 ) -> Response:
     # quick reads (the service's cache while a session runs, else a millisecond of SQLite, WAL: never
-    # waiting on the runner) run on the loop: a hop to the thread pool and back costs more than the read
-    views, total = service_of(request).list_sessions(limit=limit, offset=offset)
+    # waiting on the runner) run on the loop: a hop to the thread pool and back costs more than the read;
+    # a database server's in the thread pool (one that went away may keep a connection waiting)
+    views, total = await quick(request, service_of(request).list_sessions, limit=limit, offset=offset)
     return rendered(SessionList.model_construct(items=[session_model(v) for v in views], total=total))
 
 
@@ -131,7 +142,7 @@ async def import_session(request: Request) -> Response:
     responses=problems(*ONE),
 )
 async def get(request: Request, session_id: SessionId) -> Response:
-    return rendered(session_model(service_of(request).get_session(session_id)))  # quick (see list_sessions)
+    return rendered(session_model(await quick(request, service_of(request).get_session, session_id)))
 
 
 @router.post(

@@ -163,8 +163,8 @@ class _GuardedHttp(HttpToolsProtocol):
         if self.transport.is_closing():
             return
         if self.cycle is None or self.cycle.response_complete:  # no response of this connection under way
-            log.info("%s: no complete request header in %g s; answered 408",
-                     _peer(self.client), self.limits.header_timeout_s)  # fmt: skip
+            timeout = self.limits.header_timeout_s
+            log.info("%s: no complete request header in %g s; answered 408", _peer(self.client), timeout)
             detail = (
                 f"the request header was not complete within {self.limits.header_timeout_s:g} s: "
                 "send the whole header at once"

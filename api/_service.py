@@ -135,6 +135,11 @@ class StationService:
             raise
         self._identities: dict[str, Any] = dict(self.worker.info.identities)
 
+    @property
+    def record_is_local(self) -> bool:
+        """Whether the record is SQLite's file (its reads take a millisecond), not a database server."""
+        return self.record.engine.dialect.name == "sqlite"
+
     def in_worker(self, fn: Callable[..., Any], *args: Any) -> Any:
         """``fn(host, *args)`` in the station's worker process, its value returned here (``fn`` and the
         arguments are pickled: a module-level function). For tests and benchmarks: a simulated

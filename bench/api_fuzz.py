@@ -28,7 +28,7 @@ from typing import Any
 
 import schemathesis
 from hypothesis import HealthCheck, given, settings
-from hypothesis.errors import Unsatisfiable
+from hypothesis.errors import FlakyStrategyDefinition, Unsatisfiable
 from schemathesis.checks import not_a_server_error
 from schemathesis.core.result import Ok
 from schemathesis.generation import GenerationMode
@@ -66,6 +66,9 @@ class FuzzReport:
     operations: int = 0
     requests: int = 0
     stateful_requests: int = 0
+    scenarios: int = 0
+    stateful_restarts: int = 0
+    """Stateful runs that Hypothesis stopped as flaky (the service's state is not replayed)."""
     server_errors: list[str] = field(default_factory=list)
     violations: list[str] = field(default_factory=list)
     statuses: dict[str, int] = field(default_factory=dict)
@@ -75,7 +78,8 @@ class FuzzReport:
     def summary(self) -> str:
         return (
             f"schemathesis: {self.requests} requests over {self.operations} operations "
-            f"({self.stateful_requests} in stateful scenarios), {len(self.server_errors)} server errors, "
+            f"({self.stateful_requests} in {self.scenarios} stateful scenarios), "
+            f"{len(self.server_errors)} server errors, "
             f"{len(self.violations)} schema violations; statuses {dict(sorted(self.statuses.items()))}"
         )
 
@@ -147,6 +151,9 @@ def fuzz(base: str, token: str, *, examples: int, stateful_examples: int, steps:
         machine = schema.as_state_machine()
 
         class Scenario(machine):  # type: ignore[misc, valid-type]
+            def setup(self) -> None:
+                report.scenarios += 1
+
             def get_call_kwargs(self, case: Any) -> dict[str, Any]:
                 return {"base_url": base, "headers": run.auth, "timeout": 60}
 
@@ -155,16 +162,25 @@ def fuzz(base: str, token: str, *, examples: int, stateful_examples: int, steps:
                 report.requests += 1
                 run.check(case, response, run.auth)
 
-        Scenario.run(
-            settings=settings(
-                max_examples=stateful_examples,
-                stateful_step_count=steps,
-                deadline=None,
-                database=None,
-                derandomize=True,
-                suppress_health_check=list(HealthCheck),
-            )
-        )
+        # The service keeps its state from one scenario to the next (sessions, prompts), so a scenario that
+        # Hypothesis replays may take another turn (a link with no session behind it yet): it calls that a
+        # flaky strategy and stops. The run then goes on with a fresh seed until the scenarios are done.
+        first = True
+        while report.scenarios < stateful_examples and report.stateful_restarts <= stateful_examples:
+            try:
+                Scenario.run(
+                    settings=settings(
+                        max_examples=stateful_examples - report.scenarios,
+                        stateful_step_count=steps,
+                        deadline=None,
+                        database=None,
+                        derandomize=first,
+                        suppress_health_check=list(HealthCheck),
+                    )
+                )
+            except FlakyStrategyDefinition:
+                report.stateful_restarts += 1
+            first = False
         report.seconds_by_operation["stateful"] = round(time.monotonic() - began, 2)
     report.statuses = dict(run.statuses)
     report.seconds = round(time.monotonic() - started, 1)

@@ -117,3 +117,16 @@ def test_a_full_data_directory_is_one_line(tmp_path: Path) -> None:
     line = one_line(done)
     assert "cannot start:" in line
     assert "full" in line
+
+
+def test_public_reads_on_an_address_other_than_loopback_are_warned_of(tmp_path: Path) -> None:
+    done = serve("--public-read", "--host", "192.0.2.1", "--port", "0", "--data", str(tmp_path / "data"))
+    lines = done.stderr.splitlines()
+    assert any("reads are public (--public-read)" in line and "192.0.2.1" in line for line in lines), lines
+    assert done.returncode == 1  # and then: not an address of this machine
+    with socket.socket() as taken:  # on loopback: no warning (and then the port is in use)
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = str(taken.getsockname()[1])
+        quiet = serve("--public-read", "--port", port, "--data", str(tmp_path / "d"))
+    assert "the port is in use" in one_line(quiet)
