@@ -1,5 +1,5 @@
 """Faults shown as they are (issue 18, row 9): the record's PostgreSQL server stopped during a session
-(``pg_ctl stop -m immediate``), then started again.
+(``pg_ctl stop -m immediate``), then started again; and an error of the station worker's own.
 
 The service learns of the session's failure from the worker at once and shows it ``failed`` with the
 reason (it showed ``running`` with an ETA for as long as nobody posted again); while the record cannot
@@ -14,7 +14,8 @@ import time
 
 import pytest
 
-from tests.api.conftest import ServeFactory, wait_final, wait_state
+from station.worker import SessionHost
+from tests.api.conftest import Served, ServeFactory, wait_final, wait_state
 from tests.record.conftest import PostgresServer, postgres  # noqa: F401 - the fixture
 
 LONG = {"kind": "repeatability", "params": {"cycles": 5000, "joints": [1], "warmup_cycles": 0}}
@@ -69,3 +70,28 @@ def test_the_record_stopped_mid_session_shows_failed_then_recovers(
         assert again.status_code == 201, again.text
         assert wait_final(c, again.json()["id"])["state"] == "succeeded"
     print(f"the failure showed {shown_s * 1000:.0f} ms after the database stopped")
+
+
+def break_the_runner(host: SessionHost) -> None:
+    """In the station's worker: the next session's run raises what no runner handles (a bug)."""
+    from station import runner
+
+    def broken(self: runner.SessionRunner) -> runner.RunnerState:
+        raise RuntimeError("a bug in the station worker")
+
+    runner.SessionRunner.run = broken  # type: ignore[method-assign]
+
+
+def test_an_error_of_the_worker_shows_failed_with_its_reason(served: Served) -> None:
+    """Whatever ends a session, the service learns it from the worker and shows it failed with why."""
+    served.service.in_worker(break_the_runner)
+    with served.client() as c:
+        created = c.post("/api/v1/sessions", json=SHORT)
+        assert created.status_code == 201, created.text
+        sid = created.json()["id"]
+        doc = wait_final(c, sid)
+        assert doc["state"] == "failed"
+        assert doc["error"] == "a bug in the station worker"
+        while served.service.record.get_session(sid).state != "failed":  # and the record says so
+            time.sleep(0.05)
+        assert served.service.record.get_session(sid).error == "a bug in the station worker"
