@@ -53,6 +53,8 @@ bench: setup
 	$(BIN)/python -m bench.station_bench
 	$(BIN)/python -m bench.compute_bench
 	$(BIN)/python -m bench.service_load
+	$(BIN)/python -m bench.service_memory
+	$(BIN)/python -m bench.api_fuzz
 	$(BIN)/python -m bench.calibration_bench --seeds 10
 	$(BIN)/python -m bench.calibration_session_bench
 	$(BIN)/python -m bench.cross_check_bench
