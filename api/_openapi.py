@@ -31,6 +31,7 @@ WHY = {
     413: "the body is over the size limit (too_large)",
     415: "the body's Content-Type is not one this route takes (unsupported_type)",
     422: "the request, a parameter or the uploaded file is invalid; detail names it",
+    502: "a device failed while answering (device_error): its message says which and what to check",
     503: "a part is unavailable for now: the record (record_unavailable), the station's worker "
     "(worker_unavailable), all measuring slots (busy) or all connections in use (too_many_connections)",
 }
