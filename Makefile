@@ -53,9 +53,12 @@ bench: setup
 	$(BIN)/python -m bench.station_bench
 	$(BIN)/python -m bench.compute_bench
 	$(BIN)/python -m bench.service_load
+	$(BIN)/python -m bench.service_memory
+	$(BIN)/python -m bench.api_fuzz
 	$(BIN)/python -m bench.calibration_bench --seeds 10
 	$(BIN)/python -m bench.calibration_session_bench
 	$(BIN)/python -m bench.cross_check_bench
+	$(BIN)/python -m bench.camcal_bench
 	$(BIN)/python -m bench.page_screens --out $(OUT)/page
 
 clean:

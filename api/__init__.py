@@ -2,10 +2,27 @@
 
 ``create_app(service, access)`` builds the FastAPI app over a :class:`StationService`; routers are thin
 over the service, which uses the runner, the record and the prompt broker of ``station/``.
+``server_config(app, limits)`` is uvicorn's configuration with the server's own limits (header timeout,
+connection limit), and ``listen(host, port)`` the socket it serves.
 """
 
 from api._app import create_app
-from api._auth import Access, is_loopback, resolve_token
+from api._auth import Access, TokenError, is_loopback, resolve_token
+from api._edge import AllowedHosts
+from api._server import ListenError, ServeLimits, listen, server_config
 from api._service import ServiceSettings, StationService
 
-__all__ = ["Access", "ServiceSettings", "StationService", "create_app", "is_loopback", "resolve_token"]
+__all__ = [
+    "Access",
+    "AllowedHosts",
+    "ListenError",
+    "ServeLimits",
+    "ServiceSettings",
+    "StationService",
+    "TokenError",
+    "create_app",
+    "is_loopback",
+    "listen",
+    "resolve_token",
+    "server_config",
+]

@@ -1,4 +1,5 @@
-"""The application factory: routers over one :class:`StationService` kept on ``app.state``."""
+"""The application factory: routers over one :class:`StationService` kept on ``app.state``, behind the
+edge's checks (``api/_edge.py``)."""
 
 from __future__ import annotations
 
@@ -6,14 +7,14 @@ import asyncio
 import contextlib
 import logging
 from collections.abc import AsyncIterator
-from typing import Any
 
-import anyio
 from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
 
-from api import _errors
+from api import _errors, _openapi
 from api._auth import Access
+from api._edge import AllowedHosts, BodyDeadline, ClientsLeaving, HostCheck
+from api._gate import DecodeGate
 from api._page import STATIC
 from api._page import router as page_router
 from api._routes_events import router as events_router
@@ -22,6 +23,7 @@ from api._routes_prompt import router as prompt_router
 from api._routes_scale_calibration import router as scale_calibration_router
 from api._routes_sessions import router as sessions_router
 from api._routes_station import router as station_router
+from api._server import ServeLimits
 from api._service import StationService
 from station import __version__
 
@@ -42,47 +44,20 @@ class _NoQueryStrings(logging.Filter):
 
 ACCESS_FILTER = _NoQueryStrings()
 
-_GONE = (anyio.BrokenResourceError, anyio.ClosedResourceError)
 
-
-class _ClientsLeaving:
-    """ASGI middleware: a client leaving an event stream is not a server error.
-
-    When a client disconnects while an SSE response still has an event in flight, FastAPI's own
-    keep-alive task (``fastapi.routing``, SSE) finds its output stream closed and its task group raises
-    ``BrokenResourceError`` in an exception group after the response has started (fastapi discussion
-    #15725): logged as an unexpected error and "Exception in ASGI application" for a normal
-    disconnect. This drops exactly that, once the response has started: an exception group whose
-    every exception is anyio's broken or closed stream. Anything else still propagates.
-    """
-
-    def __init__(self, app: Any) -> None:
-        self.app = app
-
-    async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
-        if scope["type"] != "http":
-            await self.app(scope, receive, send)
-            return
-        started = False
-
-        async def send_tracking(message: Any) -> None:
-            nonlocal started
-            if message["type"] == "http.response.start":
-                started = True
-            await send(message)
-
-        try:
-            await self.app(scope, receive, send_tracking)
-        except BaseExceptionGroup as group:
-            _, rest = group.split(_GONE)
-            if not started or rest is not None:
-                raise
-            log.debug("%s: the client left during the response", scope.get("path"))
-
-
-def create_app(service: StationService, access: Access, *, close_service: bool = True) -> FastAPI:
-    """The FastAPI app serving ``service``; ``access`` holds the token and whether reads are open.
-    With ``close_service`` the service is closed (session stopped, devices closed) at shutdown."""
+def create_app(
+    service: StationService,
+    access: Access,
+    *,
+    close_service: bool = True,
+    limits: ServeLimits | None = None,
+    hosts: AllowedHosts | None = None,
+) -> FastAPI:
+    """The FastAPI app serving ``service``; ``access`` holds the token and whether reads are open,
+    ``limits`` the request timeouts and ``/measure``'s slots (the server's own are applied by
+    ``api/_server.py``), ``hosts`` the Host names served (default: the loopback names). With
+    ``close_service`` the service is closed (session stopped, devices closed) at shutdown."""
+    lim = limits or ServeLimits()
 
     @contextlib.asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
@@ -96,8 +71,10 @@ def create_app(service: StationService, access: Access, *, close_service: bool =
     app = FastAPI(
         title="Robot calibration station",
         version=__version__,
-        description="Sessions, measurements, operator prompts and live events of the station. Mutations and "
-        "event streams need the station's token (Bearer, or the cookie the login URL sets).",
+        description="Sessions, measurements, operator prompts and live events of the station. Everything "
+        "but /health and /access need the station's token (Bearer, or the cookie the login URL sets; a "
+        "cookie request must come from the station's own page), unless station serve --public-read opens "
+        "the reads.",
         lifespan=lifespan,
         openapi_url="/api/v1/openapi.json",
         docs_url="/api/v1/docs",
@@ -108,9 +85,14 @@ def create_app(service: StationService, access: Access, *, close_service: bool =
         access_logger.addFilter(ACCESS_FILTER)
     app.state.service = service
     app.state.access = access
+    app.state.limits = lim
+    app.state.measure_gate = DecodeGate(lim.measure_slots, lim.measure_queue)
     app.state.stopping = asyncio.Event()
     _errors.install(app)
-    app.add_middleware(_ClientsLeaving)
+    # the last added runs first: the Host check before anything else, then the body's deadlines
+    app.add_middleware(ClientsLeaving)
+    app.add_middleware(BodyDeadline, idle_s=lim.body_idle_s, total_s=lim.body_s)
+    app.add_middleware(HostCheck, hosts=hosts or AllowedHosts.of())
     for router in (
         station_router,
         plans_router,
@@ -122,4 +104,5 @@ def create_app(service: StationService, access: Access, *, close_service: bool =
     ):
         app.include_router(router)
     app.mount("/static", StaticFiles(directory=STATIC), name="static")
+    _openapi.install(app)
     return app

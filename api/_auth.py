@@ -1,10 +1,24 @@
-"""Access control: this API moves a robot arm.
+"""Access control: this API moves a robot arm, and its reads show the station's data.
 
-Mutations, prompt answers and event streams need the token: ``Authorization: Bearer TOKEN`` or the
-``station_token`` cookie (a browser's EventSource cannot send headers). The cookie is set by opening
-the page's login URL (``/?token=TOKEN``), which redirects to the bare URL. GET endpoints other than
-streams are open while the server is bound to loopback and ``open_reads`` is on; otherwise they need
-the token too. Tokens are compared in constant time and never logged.
+Every route that returns the station's data (sessions, events, images, exports, reports, the camera,
+``/station``) needs the token, as mutations do: ``Authorization: Bearer TOKEN`` or the
+``station_token`` cookie (a browser's EventSource cannot send headers), which opening the page's
+login URL (``/?token=TOKEN``) sets before redirecting to the bare URL. ``/health``, the page itself
+and the OpenAPI document stay open. ``public_read`` (``station serve --public-read``, for a trusted
+network) opens the reads again, never the event streams nor a mutation.
+
+The cookie travels with any request the browser makes to this host, whatever page makes it:
+``SameSite=Strict`` does not separate two ports of one host. So a request authenticated by the cookie
+alone must come from the page itself:
+
+* a mutation needs an ``Origin`` equal to this service's own scheme, host and port (or, without an
+  ``Origin``, ``Sec-Fetch-Site: same-origin``), else 403;
+* a read is refused (403) when the browser says it comes from another site or another port of this
+  one (``Sec-Fetch-Site: cross-site`` or ``same-site``) and is not a navigation: another page can show
+  neither the camera nor a report in its own frame.
+
+A request with a Bearer token is a script's: none of this applies. Tokens are compared in constant
+time and never logged.
 """
 
 from __future__ import annotations
@@ -24,6 +38,10 @@ TOKEN_ENV = "STATION_API_TOKEN"
 MIN_TOKEN_CHARS = 16
 
 
+class TokenError(ValueError):
+    """The configured token is unusable; ``str()`` says why and how to make a good one."""
+
+
 def is_loopback(host: str) -> bool:
     """Whether binding to ``host`` keeps the server on this machine (127.0.0.0/8, ::1, localhost)."""
     if host == "localhost":
@@ -36,39 +54,44 @@ def is_loopback(host: str) -> bool:
 
 def resolve_token(configured: str | None) -> tuple[str, bool]:
     """The token: the configuration's, else ``$STATION_API_TOKEN``, else a new random one.
-    Returns ``(token, generated)``."""
-    if configured:
-        return configured, False
-    env = os.environ.get(TOKEN_ENV, "").strip()
-    if env:
-        if len(env) < MIN_TOKEN_CHARS:
-            raise ValueError(
-                f"{TOKEN_ENV} is {len(env)} characters long; use at least {MIN_TOKEN_CHARS} "
-                "(e.g. python -c 'import secrets; print(secrets.token_urlsafe(32))')"
+    Returns ``(token, generated)``; TokenError for a token shorter than ``MIN_TOKEN_CHARS``."""
+    for source, value in (
+        ("the configuration's [api] token", configured),
+        (TOKEN_ENV, os.environ.get(TOKEN_ENV)),
+    ):
+        token = (value or "").strip()
+        if not token:
+            continue
+        if len(token) < MIN_TOKEN_CHARS:
+            raise TokenError(
+                f"the API token needs at least {MIN_TOKEN_CHARS} characters ({source} has {len(token)}): "
+                "make one with python3 -c 'import secrets; print(secrets.token_urlsafe(32))'"
             )
-        return env, False
+        return token, False
     return secrets.token_urlsafe(32), True
 
 
 @dataclass(frozen=True)
 class Access:
-    """The token and whether GET endpoints are open without it."""
+    """The token, and whether reads are open without it (``--public-read``)."""
 
     token: str
-    open_reads: bool
+    public_read: bool = False
 
     def matches(self, candidate: str | None) -> bool:
         return candidate is not None and hmac.compare_digest(candidate.encode(), self.token.encode())
 
-    def presented(self, request: Request) -> str | None:
+    def presented(self, request: Request) -> tuple[str | None, bool]:
+        """The token the request carries and whether it came as a Bearer header (else the cookie)."""
         header = request.headers.get("authorization", "")
         scheme, _, value = header.partition(" ")
         if scheme.lower() == "bearer" and value.strip():
-            return value.strip()
-        return request.cookies.get(COOKIE)
+            return value.strip(), True
+        return request.cookies.get(COOKIE), False
 
-    def check(self, request: Request) -> None:
-        token = self.presented(request)
+    def check(self, request: Request, *, mutation: bool) -> None:
+        """401 without the right token; 403 for a cookie request another page made (see the module)."""
+        token, bearer = self.presented(request)
         if token is None:
             raise ApiError(
                 401,
@@ -80,6 +103,47 @@ class Access:
             raise ApiError(
                 401, "the API token is wrong: use the one station serve printed or configured", "bad_token"
             )
+        if not bearer:
+            (same_origin if mutation else not_embedded)(request)
+
+
+def own_origin(request: Request) -> str:
+    """This service's origin as the client addressed it: scheme, host and port (the ``Host`` header,
+    which the edge has checked against the allowed names)."""
+    return f"{request.url.scheme}://{request.headers.get('host', '')}".lower()
+
+
+def same_origin(request: Request) -> None:
+    """403 unless the request comes from this service's own page (``Origin``, else Fetch Metadata)."""
+    origin = request.headers.get("origin")
+    site = request.headers.get("sec-fetch-site")
+    mine = own_origin(request)
+    if origin is not None:
+        if origin.lower().rstrip("/") == mine:
+            return
+        came = f"from {origin}"
+    elif site == "same-origin":
+        return
+    else:
+        came = "with no Origin header" + (f" (Sec-Fetch-Site: {site})" if site else "")
+    raise ApiError(
+        403,
+        f"a request authenticated by the login cookie came {came}, not from this station's page at "
+        f"{mine}: use the page, or send 'Authorization: Bearer TOKEN' from a script",
+        "cross_origin",
+    )
+
+
+def not_embedded(request: Request) -> None:
+    """403 for a cookie read another site or another port's page embeds or fetches (not a navigation)."""
+    site = request.headers.get("sec-fetch-site")
+    if site in ("cross-site", "same-site") and request.headers.get("sec-fetch-mode") != "navigate":
+        raise ApiError(
+            403,
+            f"another page ({site}) asked for this with the login cookie; open it from the station's own "
+            f"page at {own_origin(request)}, or send 'Authorization: Bearer TOKEN' from a script",
+            "cross_origin",
+        )
 
 
 def _access(request: Request) -> Access:
@@ -92,12 +156,17 @@ def _access(request: Request) -> Access:
 
 
 async def require_token(request: Request) -> None:
-    """Dependency of mutations, prompt answers and event streams."""
-    _access(request).check(request)
+    """Dependency of mutations and prompt answers: the token, and a cookie only from the page."""
+    _access(request).check(request, mutation=True)
+
+
+async def stream_access(request: Request) -> None:
+    """Dependency of the event streams: the token always (``public_read`` does not open them)."""
+    _access(request).check(request, mutation=False)
 
 
 async def read_access(request: Request) -> None:
-    """Dependency of GET endpoints: open on loopback with ``open_reads``, else the token."""
+    """Dependency of the routes that return the station's data: the token unless ``public_read``."""
     access = _access(request)
-    if not access.open_reads:
-        access.check(request)
+    if not access.public_read:
+        access.check(request, mutation=False)

@@ -1,12 +1,62 @@
-"""Dependency wiring: the service lives on ``app.state``, never in a module global."""
+"""Dependency wiring: the service lives on ``app.state``, never in a module global; ids in paths are
+checked against their pattern before anything looks them up."""
 
 from __future__ import annotations
 
-from fastapi import Request
+import re
+from typing import Annotated
 
+from fastapi import Depends, Path, Request
+
+from api._errors import ApiError
 from api._service import StationService
+
+SESSION_ID = r"^[0-9A-Fa-f]{4,12}$"
+"""A session id (12 hexadecimal digits) or a unique prefix of at least 4 of them."""
+PROMPT_ID = r"^[0-9A-Za-z_-]{1,64}$"
 
 
 def service_of(request: Request) -> StationService:
     service: StationService = request.app.state.service
     return service
+
+
+async def _session_id(
+    session_id: Annotated[
+        str,
+        Path(
+            description="the session's id (12 hexadecimal digits) or a unique prefix of at least 4",
+            json_schema_extra={"pattern": SESSION_ID},
+        ),
+    ],
+) -> str:
+    if not re.fullmatch(SESSION_ID, session_id):
+        raise ApiError(
+            404,
+            f"no session {session_id!r}: a session id is 12 hexadecimal digits (or a prefix of at least 4); "
+            "GET /api/v1/sessions lists them",
+            "session_not_found",
+        )
+    return session_id.lower()
+
+
+async def _prompt_id(
+    prompt_id: Annotated[
+        str,
+        Path(
+            description="the prompt's id, as GET /api/v1/prompt gives it",
+            json_schema_extra={"pattern": PROMPT_ID},
+        ),
+    ],
+) -> str:
+    if not re.fullmatch(PROMPT_ID, prompt_id):
+        raise ApiError(
+            404, f"no prompt {prompt_id!r}: GET /api/v1/prompt gives the open one", "prompt_not_found"
+        )
+    return prompt_id
+
+
+SessionId = Annotated[str, Depends(_session_id)]
+"""A route's ``{session_id}``: 404 unless it has the pattern of a session id (lower-cased)."""
+PromptId = Annotated[str, Depends(_prompt_id)]
+"""A route's ``{prompt_id}``: 404 unless it has the pattern of a prompt id."""

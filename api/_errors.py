@@ -7,13 +7,16 @@ The table below is the only place where an exception becomes an HTTP status.
 
 from __future__ import annotations
 
+import json
 import logging
 from typing import Any
 
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import JSONResponse
+from fastapi.responses import JSONResponse, Response
 from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.requests import ClientDisconnect
+from starlette.routing import Match
 
 from api._service import ConflictError, ImportArchiveError, NotAvailableError, WorkerError
 from station.arm_route import RouteRejectedError
@@ -22,7 +25,13 @@ from station.devices import DeviceError, MotionRejectedError
 from station.imageio import ImageFileError
 from station.plans import PlanError
 from station.prompts import InvalidAnswerError, PromptBusyError, PromptError, UnknownPromptError
-from station.record import ImportRefusedError, RecordError, RecordNotFoundError, SessionLockError
+from station.record import (
+    ImportRefusedError,
+    RecordError,
+    RecordNotFoundError,
+    RecordUnavailableError,
+    SessionLockError,
+)
 from station.runner import PreflightError, SessionError
 from station.scale_calibration import NothingToRevertError, ScaleCalibrationError
 
@@ -49,6 +58,7 @@ STATUS_OF: tuple[tuple[type[Exception], int, str], ...] = (
     (PromptBusyError, 409, "prompt_busy"),
     (PromptError, 409, "prompt_error"),
     (ImageFileError, 422, "bad_image"),
+    (RecordUnavailableError, 503, "record_unavailable"),
     (PlanError, 422, "invalid_parameters"),
     (ConfigurationError, 422, "configuration_error"),
     (RecordError, 422, "record_error"),
@@ -63,6 +73,7 @@ TITLES = {
     403: "Forbidden",
     404: "Not found",
     405: "Method not allowed",
+    408: "Request timeout",
     409: "Conflict",
     413: "Content too large",
     415: "Unsupported media type",
@@ -73,9 +84,12 @@ TITLES = {
 }
 
 
-def problem(status: int, detail: str, code: str, **extra: Any) -> JSONResponse:
-    """A problem-details response."""
-    body = {
+RETRY_AFTER_S = {"record_unavailable": 2, "busy": 1, "too_many_connections": 1}
+"""``Retry-After`` (seconds) of the 503 answers, by code: what is unavailable comes back by itself."""
+
+
+def problem_body(status: int, detail: str, code: str, **extra: Any) -> dict[str, Any]:
+    return {
         "type": PROBLEM_BASE + code,
         "title": TITLES.get(status, "Error"),
         "status": status,
@@ -83,8 +97,25 @@ def problem(status: int, detail: str, code: str, **extra: Any) -> JSONResponse:
         "code": code,
         **extra,
     }
-    headers = {"WWW-Authenticate": 'Bearer realm="station"'} if status == 401 else None
-    return JSONResponse(body, status_code=status, media_type=PROBLEM_JSON, headers=headers)
+
+
+def problem_bytes(status: int, detail: str, code: str) -> bytes:
+    """A problem-details body, for answers given below the app (the server, the edge middlewares)."""
+    return json.dumps(problem_body(status, detail, code)).encode()
+
+
+def problem(
+    status: int, detail: str, code: str, *, headers: dict[str, str] | None = None, **extra: Any
+) -> JSONResponse:
+    """A problem-details response (401 with ``WWW-Authenticate``, 503 with ``Retry-After``)."""
+    head = dict(headers or {})
+    if status == 401:
+        head["WWW-Authenticate"] = 'Bearer realm="station"'
+    if status == 503 and code in RETRY_AFTER_S:
+        head.setdefault("Retry-After", str(RETRY_AFTER_S[code]))
+    return JSONResponse(
+        problem_body(status, detail, code, **extra), status_code=status, media_type=PROBLEM_JSON, headers=head
+    )
 
 
 def status_of(exc: BaseException) -> tuple[int, str]:
@@ -97,11 +128,29 @@ def status_of(exc: BaseException) -> tuple[int, str]:
 class ApiError(Exception):
     """An HTTP-level refusal raised by the routers themselves (401, 413, 415 ...)."""
 
-    def __init__(self, status: int, detail: str, code: str) -> None:
+    def __init__(self, status: int, detail: str, code: str, *, headers: dict[str, str] | None = None) -> None:
         super().__init__(detail)
         self.status = status
         self.detail = detail
         self.code = code
+        self.headers = headers
+
+
+FASTAPI_BODY_ERROR = "There was an error parsing the body"
+"""FastAPI's 400 for a JSON body it cannot decode (JSON syntax errors are 422 ``invalid_request``)."""
+METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
+
+
+def allowed_methods(request: Request) -> str:
+    """The methods some route of the request's path takes (Starlette's own ``Allow`` names only the
+    first such route's: ``GET`` and ``POST`` of one path are two routes)."""
+    routes = request.app.router.routes
+    allowed = [
+        method
+        for method in METHODS
+        if any(route.matches({**request.scope, "method": method})[0] is Match.FULL for route in routes)
+    ]
+    return ", ".join(allowed)
 
 
 def install(app: FastAPI) -> None:
@@ -118,7 +167,7 @@ def install(app: FastAPI) -> None:
 
     async def api_error(request: Request, exc: Exception) -> JSONResponse:
         assert isinstance(exc, ApiError)
-        return problem(exc.status, exc.detail, exc.code)
+        return problem(exc.status, exc.detail, exc.code, headers=exc.headers)
 
     async def validation(request: Request, exc: Exception) -> JSONResponse:
         assert isinstance(exc, RequestValidationError)
@@ -132,7 +181,18 @@ def install(app: FastAPI) -> None:
     async def http_error(request: Request, exc: Exception) -> JSONResponse:
         assert isinstance(exc, StarletteHTTPException)
         code = {404: "not_found", 405: "method_not_allowed"}.get(exc.status_code, f"http_{exc.status_code}")
-        return problem(exc.status_code, str(exc.detail), code)
+        detail, headers = str(exc.detail), dict(exc.headers or {})
+        if exc.status_code == 400 and detail == FASTAPI_BODY_ERROR:  # not JSON's syntax: its bytes
+            detail = "the body cannot be read as JSON text (it is not UTF-8): send UTF-8 JSON"
+            code = "bad_body"
+        if exc.status_code == 405:
+            headers["Allow"] = allowed_methods(request)
+            detail = f"{request.method} is not allowed here; allowed: {headers['Allow']}"
+        return problem(exc.status_code, detail, code, headers=headers)
+
+    async def client_left(request: Request, exc: Exception) -> Response:
+        # the client hung up during its request body: api/_edge.py has logged it once; nobody to answer
+        return Response(status_code=400)
 
     async def unexpected(request: Request, exc: Exception) -> JSONResponse:
         log.error("unexpected error on %s %s: %s", request.method, request.url.path, exc, exc_info=exc)
@@ -141,6 +201,7 @@ def install(app: FastAPI) -> None:
     for kind, _status, _code in STATUS_OF:
         app.add_exception_handler(kind, domain)
     app.add_exception_handler(ApiError, api_error)
+    app.add_exception_handler(ClientDisconnect, client_left)
     app.add_exception_handler(RequestValidationError, validation)
     app.add_exception_handler(StarletteHTTPException, http_error)
     app.add_exception_handler(Exception, unexpected)

@@ -14,19 +14,21 @@ from fastapi.responses import Response
 from pydantic import BaseModel, ConfigDict, Field
 
 from api._service import SessionView
+from station.plans import PLAN_NAMES
 from station.prompts import Prompt, PromptAnswer
 from station.record import EventRow
 from station.resources import SessionOutcome, SessionResource
 
 
 class Problem(BaseModel):
-    """RFC 9457 problem details."""
+    """RFC 9457 problem details; ``code`` is the stable name of the refusal."""
 
     type: str
     title: str
     status: int
     detail: str
     code: str
+    problems: list[str] | None = Field(None, description="pre-flight's findings (code preflight_failed)")
 
 
 class Health(BaseModel):
@@ -82,7 +84,7 @@ class SessionCreate(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    kind: str = Field(description="validation, repeatability, sweep or reanalyse")
+    kind: str = Field(description="the session's plan", json_schema_extra={"enum": list(PLAN_NAMES)})
     params: dict[str, Any] = Field(default_factory=dict, description="the plan's parameters")
     set: dict[str, Any] = Field(default_factory=dict, description="measurement parameters, as --set")
 

@@ -17,19 +17,22 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 from collections.abc import AsyncIterator
-from typing import Any
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, Header, Request
 from fastapi.concurrency import run_in_threadpool
 from fastapi.sse import EventSourceResponse, ServerSentEvent
 
-from api._auth import require_token
-from api._deps import service_of
-from api._errors import ApiError
+from api._auth import stream_access
+from api._deps import SessionId, service_of
 from api._models import EventModel
-from station.record import EventRow
+from api._openapi import problems
+from station.record import EventRow, RecordUnavailableError
 from station.runner import FINAL_STATES
+
+log = logging.getLogger(__name__)
 
 router = APIRouter(prefix="/api/v1")
 
@@ -37,13 +40,15 @@ POLL_S = 1.0
 RETRY_MS = 2000
 
 
-def _last_id(value: str | None) -> int:
-    if value is None or not value.strip():
-        return 0
-    text = value.strip()
-    if not text.isdigit() or len(text) > 18:
-        raise ApiError(422, f"Last-Event-ID must be a non-negative integer, got {value!r}", "invalid_request")
-    return int(text)
+LastEventId = Annotated[
+    int | None,
+    Header(
+        alias="Last-Event-ID",
+        ge=0,
+        le=10**18,
+        description="resume after this event id (a browser's EventSource sends it when it reconnects)",
+    ),
+]
 
 
 RENDERED = 4096
@@ -113,20 +118,26 @@ async def _wait(waiter: asyncio.Event, timeout_s: float) -> None:
 
 
 async def session_cursor(
-    request: Request, session_id: str, last_event_id: str | None = Header(None)
+    request: Request, session_id: SessionId, last_event_id: LastEventId = None
 ) -> tuple[str, int]:
     """The session's full id and the sequence number to resume after: checked before the stream starts
     (404 for an unknown session, 422 for a malformed Last-Event-ID). Coroutines, like the token check
     (see ``api/_auth.py``): this process's running session needs no look-up."""
-    after = _last_id(last_event_id)
+    after = last_event_id or 0
     service = service_of(request)
     if service.session_ended(session_id) is not None:  # this process's latest session, by its full id
         return session_id, after
     return (await run_in_threadpool(service.record.get_session, session_id)).id, after
 
 
-async def station_cursor(last_event_id: str | None = Header(None)) -> int:
-    return _last_id(last_event_id)
+async def station_cursor(last_event_id: LastEventId = None) -> int:
+    return last_event_id or 0
+
+
+STREAM = {
+    "description": "the events, as Server-Sent Events",
+    "content": {"text/event-stream": {"schema": {"type": "string"}}},
+}
 
 
 def _sse(hub: _Hub, e: EventRow, event_id: int) -> ServerSentEvent:
@@ -136,10 +147,11 @@ def _sse(hub: _Hub, e: EventRow, event_id: int) -> ServerSentEvent:
 @router.get(
     "/sessions/{session_id}/events",
     response_class=EventSourceResponse,
-    dependencies=[Depends(require_token)],
+    dependencies=[Depends(stream_access)],
+    responses={200: STREAM, **problems(401, 403, 404, 422, 503)},
 )
 async def session_events(
-    request: Request, session_id: str, cursor: tuple[str, int] = Depends(session_cursor)
+    request: Request, cursor: tuple[str, int] = Depends(session_cursor)
 ) -> AsyncIterator[ServerSentEvent]:
     """The session's events from after ``Last-Event-ID`` (its sequence number), live until it ends."""
     service = service_of(request)
@@ -170,11 +182,24 @@ async def session_events(
                 if request.app.state.stopping.is_set() or await request.is_disconnected():
                     return
                 await _wait(waiter, POLL_S)
+    except RecordUnavailableError as exc:
+        _record_gone(sid, exc)
     finally:
         hub.release(waiter)
 
 
-@router.get("/events", response_class=EventSourceResponse, dependencies=[Depends(require_token)])
+def _record_gone(what: str, exc: RecordUnavailableError) -> None:
+    """The record went away under a stream: it ends (one log line); the client's reconnection is
+    answered 503 ``record_unavailable`` until the record is back, and resumes from Last-Event-ID."""
+    log.warning("event stream of %s ended: %s", what, exc)
+
+
+@router.get(
+    "/events",
+    response_class=EventSourceResponse,
+    dependencies=[Depends(stream_access)],
+    responses={200: STREAM, **problems(401, 403, 422, 503)},
+)
 async def station_events(
     request: Request, after_id: int = Depends(station_cursor)
 ) -> AsyncIterator[ServerSentEvent]:
@@ -194,5 +219,7 @@ async def station_events(
                 if request.app.state.stopping.is_set() or await request.is_disconnected():
                     return
                 await _wait(waiter, POLL_S)
+    except RecordUnavailableError as exc:
+        _record_gone("the station", exc)
     finally:
         hub.release(waiter)

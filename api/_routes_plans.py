@@ -10,6 +10,7 @@ from pydantic_core import to_jsonable_python
 
 from api._auth import read_access
 from api._models import PlanList, PlanModel
+from api._openapi import problems
 from station.plans import PLAN_NAMES, get_plan
 
 router = APIRouter(prefix="/api/v1")
@@ -39,7 +40,9 @@ def plan_list() -> PlanList:
     )
 
 
-@router.get("/plans", response_model=PlanList, dependencies=[Depends(read_access)])
+@router.get(
+    "/plans", response_model=PlanList, dependencies=[Depends(read_access)], responses=problems(401, 403)
+)
 async def plans() -> PlanList:
     """Every session kind the station runs (``/station``'s ``plans``), with its parameters' schema."""
     return plan_list()

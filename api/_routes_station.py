@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import struct
 from typing import Any
 
 from fastapi import APIRouter, Depends, Request
@@ -12,11 +13,13 @@ from fastapi.responses import Response
 from api._auth import Access, read_access, require_token
 from api._deps import service_of
 from api._errors import ApiError
+from api._gate import DecodeGate
 from api._models import AccessModel, Health, StationModel, rendered
+from api._openapi import binary, problems
 from api._overlay import measurement_headers
 from station import __version__
 from station.arm_route import ArmStatus, ToReferenceResult
-from station.imageio import DEFAULT_MAX_BYTES, ImageLimits
+from station.imageio import DEFAULT_MAX_BYTES, ImageLimits, read_header
 from station.vision import MeasureParams
 
 router = APIRouter(prefix="/api/v1")
@@ -35,12 +38,13 @@ async def access(request: Request) -> AccessModel:
     """Whether the request carries the station's token (header or the login cookie) and whether reads are
     open without it: the page says it is read-only, or that it needs the login URL, before anything fails."""
     granted: Access = request.app.state.access
-    return AccessModel(
-        authenticated=granted.matches(granted.presented(request)), open_reads=granted.open_reads
-    )
+    token, _ = granted.presented(request)
+    return AccessModel(authenticated=granted.matches(token), open_reads=granted.public_read)
 
 
-@router.get("/station", response_model=StationModel, dependencies=[Depends(read_access)])
+@router.get(
+    "/station", response_model=StationModel, dependencies=[Depends(read_access)], responses=problems(401, 403)
+)
 async def station(request: Request) -> Response:
     """Configuration (secrets redacted), devices' identities and states from the cached snapshot."""
     return rendered(StationModel.model_construct(**service_of(request).station()))
@@ -50,7 +54,10 @@ async def station(request: Request) -> Response:
     "/camera/snapshot.png",
     dependencies=[Depends(read_access)],
     response_class=Response,
-    responses={200: {"content": {"image/png": {}}}},
+    responses={
+        200: binary("image/png", "the frame, as PNG"),
+        **problems(401, 403, 422, 503, s409="a session owns the camera, or the station has none"),
+    },
 )
 async def snapshot(request: Request, overlay: bool = False) -> Response:
     """A frame from the camera (optionally with the measurement drawn on it); 409 while a session owns
@@ -68,7 +75,7 @@ async def snapshot(request: Request, overlay: bool = False) -> Response:
     "/station/robot",
     response_model=ArmStatus,
     dependencies=[Depends(read_access)],
-    responses={409: {"description": "a session (or the arm's route) owns the arm"}},
+    responses=problems(401, 403, 502, 503, s409="a session (or the arm's route) owns the arm"),
 )
 async def robot(request: Request) -> Response:
     """Where the arm is against its reference pose (``at_reference``) and the route ``to-reference``
@@ -80,10 +87,14 @@ async def robot(request: Request) -> Response:
     "/station/robot/to-reference",
     response_model=ToReferenceResult,
     dependencies=[Depends(require_token)],
-    responses={
-        409: {"description": "a session runs (or the arm is already on its way)"},
-        422: {"description": "the route is refused by the driver's checks; nothing moved (``problems``)"},
-    },
+    responses=problems(
+        401,
+        403,
+        502,
+        503,
+        s409="a session runs (or the arm is already on its way)",
+        s422="the route is refused by the driver's checks; nothing moved (``problems``)",
+    ),
 )
 async def to_reference(request: Request) -> Response:
     """Take the arm to its reference pose from wherever it is: through the lift pose unless it is within
@@ -93,13 +104,31 @@ async def to_reference(request: Request) -> Response:
     return rendered(await run_in_threadpool(service_of(request).to_reference))
 
 
-async def read_body(request: Request, max_bytes: int) -> bytes:
-    """The request body, refused with 413 past ``max_bytes`` (before reading it when declared)."""
+def require_type(request: Request, accepted: tuple[str, ...]) -> None:
+    """415 unless the body's declared Content-Type is one of ``accepted``: a web page's no-cors
+    request can only send text/plain or a form, so an upload route never reads those."""
+    ctype = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    if ctype not in accepted:
+        raise ApiError(
+            415,
+            f"content type {ctype or '(none)'!r} is not accepted here; send {', '.join(accepted)}",
+            "unsupported_type",
+        )
+
+
+def check_declared_size(request: Request, max_bytes: int) -> None:
+    """413 for a declared ``Content-Length`` over ``max_bytes``, before anything is read."""
     declared = request.headers.get("content-length")
     if declared is not None and declared.isdigit() and int(declared) > max_bytes:
         raise ApiError(
             413, f"the body is {int(declared)} bytes, over the {max_bytes} byte limit", "too_large"
         )
+
+
+async def read_body(request: Request, max_bytes: int) -> bytes:
+    """The request body, refused with 413 past ``max_bytes`` (before reading it when declared). A
+    client that leaves meanwhile raises Starlette's ``ClientDisconnect`` (answered quietly)."""
+    check_declared_size(request, max_bytes)
     chunks: list[bytes] = []
     size = 0
     async for chunk in request.stream():
@@ -143,19 +172,36 @@ def measure_query(request: Request) -> dict[str, Any]:
             }
         ],
     },
-    responses={413: {"description": "over the size caps"}, 415: {"description": "not PNG, TIFF or JPEG"}},
+    responses=problems(
+        401,
+        403,
+        413,
+        415,
+        s422="an undecodable image, one over the pixel or decoded-size cap, or a bad parameter",
+        s503="every measuring slot is taken and the queue is full (busy): try again after Retry-After",
+    ),
 )
 async def measure(request: Request) -> dict[str, Any]:
-    """The same object as ``station measure --json`` (``ok`` true or false): the image is the raw body."""
-    ctype = request.headers.get("content-type", "").split(";")[0].strip().lower()
-    if ctype not in IMAGE_TYPES:
-        raise ApiError(
-            415,
-            f"content type {ctype or '(none)'!r} is not accepted; send {', '.join(IMAGE_TYPES)}",
-            "unsupported_type",
-        )
+    """The same object as ``station measure --json`` (``ok`` true or false): the image is the raw body.
+    At most one image per core is decoded at a time (the largest take every core's turn), a few more
+    wait, and the rest get 503 (busy): ``api/_gate.py``."""
+    require_type(request, IMAGE_TYPES)
     params = measure_query(request)
-    data = await read_body(request, MAX_UPLOAD_BYTES)
-    service = service_of(request)
-    limits = ImageLimits(max_bytes=MAX_UPLOAD_BYTES)
-    return await run_in_threadpool(service.measure_image, data, params, limits=limits)
+    check_declared_size(request, MAX_UPLOAD_BYTES)
+    gate: DecodeGate = request.app.state.measure_gate
+    limits = ImageLimits(
+        max_bytes=MAX_UPLOAD_BYTES, max_decoded_bytes=request.app.state.limits.max_decoded_bytes
+    )
+    async with gate.place():  # before the body is read: the rest get 503 without sending it
+        data = await read_body(request, MAX_UPLOAD_BYTES)
+        async with gate.slots_for(gate.weight(_decoded_bytes(data), limits.max_decoded_bytes)):
+            return await run_in_threadpool(service_of(request).measure_image, data, params, limits=limits)
+
+
+def _decoded_bytes(data: bytes) -> int | None:
+    """What the image's header declares it decodes to; None when it has no header this door reads (the
+    decoding then refuses it, at once)."""
+    try:
+        return read_header(data).decoded_bytes
+    except (ValueError, struct.error):
+        return None

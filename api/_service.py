@@ -47,6 +47,7 @@ from station.record import (
     ArchiveRefusedError,
     EventRow,
     Record,
+    RecordUnavailableError,
     SessionLockError,
     SessionRow,
     lock_holder,
@@ -137,6 +138,7 @@ class StationService:
                 ),
                 on_event=self._on_event,
                 on_exit=self._on_worker_exit,
+                on_ended=self._on_session_failed,
             )
         except BaseException:
             self.record.close()
@@ -146,6 +148,11 @@ class StationService:
         self.robot_state = RobotMirror(lambda: self.worker.call("robot_state", timeout_s=60))
         """The robot's state and pose (read by the worker between sessions, see ``api/_robot.py``)."""
         self.robot_state.refresh()
+
+    @property
+    def record_is_local(self) -> bool:
+        """Whether the record is SQLite's file (its reads take a millisecond), not a database server."""
+        return self.record.engine.dialect.name == "sqlite"
 
     def in_worker(self, fn: Callable[..., Any], *args: Any) -> Any:
         """``fn(host, *args)`` in the station's worker process, its value returned here (``fn`` and the
@@ -164,12 +171,21 @@ class StationService:
                 return reconcile(self.record)
         except SessionLockError:
             return []
+        except RecordUnavailableError as exc:  # the next start reconciles (a runner does it first)
+            log.warning("left-over sessions not reconciled: %s", exc)
+            return []
 
     def _on_worker_exit(self) -> None:
         """The worker died (not a shutdown): its session, left active, shows as interrupted."""
         marked = self._reconcile()
         if marked:
             log.error("session(s) %s interrupted: the station worker process ended", ", ".join(marked))
+        self._generation += 1
+
+    def _on_session_failed(self, status: RunnerStatus) -> None:
+        """The worker's session failed and its record may not say so yet (the worker records it once it
+        can): shown ``failed`` with ``status.error`` from now on (:meth:`_view`)."""
+        log.error("session %s failed: %s", status.session_id, status.error)
         self._generation += 1
 
     def close(self, *, timeout_s: float = 30.0) -> None:
@@ -457,7 +473,14 @@ class StationService:
         changes only with its state while it runs)."""
         runner = self.running
         if runner is None or runner.session_id != session_id:
-            return self.record.get_session(session_id)
+            try:
+                return self.record.get_session(session_id)
+            except RecordUnavailableError:
+                # the worker's latest session as last read: its state and error come from the worker
+                cached, status = self._row_cache, self.worker.status
+                if cached is None or status is None or not cached[1].id == session_id == status.session_id:
+                    raise
+                return cached[1]
         generation = self._generation
         cached = self._row_cache
         if cached is not None and cached[0] == generation and cached[1].id == session_id:
@@ -481,6 +504,9 @@ class StationService:
                 # sees the prompt it raised finds the session awaiting the operator; a final state comes
                 # from the record, with its error
                 row = dataclasses.replace(row, state=str(state))
+            elif status.error is not None and row.state in ACTIVE_STATES:
+                # it failed where its runner could not record it (the record gone): the worker says so
+                row = dataclasses.replace(row, state=str(state), error=status.error)
             if status.progress.total == 0 and status.state not in FINAL_STATES:
                 # a run that has not counted its steps yet (a resumed one, before pre-flight): what the
                 # record holds, so that its count goes on from where it stopped
@@ -560,7 +586,8 @@ class StationService:
                 stamp.write_text(row.updated_at.isoformat())
         return folder
 
-    def export_zip(self, session_id: str) -> bytes:
+    def export_zip(self, session_id: str) -> tuple[str, bytes]:
+        """The session's export folder, zipped; with the record's own id of the session."""
         import tempfile
 
         row = self.record.get_session(session_id)
@@ -571,7 +598,7 @@ class StationService:
                 for path in sorted(out.rglob("*")):
                     if path.is_file():
                         zf.write(path, Path(row.id) / path.relative_to(out))
-            return buf.getvalue()
+            return row.id, buf.getvalue()
 
     def import_zip(self, data: bytes, *, max_bytes: int) -> SessionRow:
         """Import an uploaded zip of an export: the record's one import path (``station import`` too),

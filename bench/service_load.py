@@ -277,7 +277,7 @@ def meter_overhead(host: Any, session_id: str, windows: list[tuple[float, float]
 def main() -> None:
     import uvicorn
 
-    from api import Access, ServiceSettings, StationService, create_app
+    from api import Access, ServeLimits, ServiceSettings, StationService, create_app, server_config
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--clients", type=int, default=50)
@@ -313,19 +313,15 @@ def main() -> None:
 
         service.in_worker(hooks.install_meter, speed_pct, settle_s)
         service_nice = service.worker.info.nice
-        app = create_app(service, Access(token, True))
-        server = uvicorn.Server(
-            uvicorn.Config(
-                app,
-                host="127.0.0.1",
-                port=0,
-                access_log=False,
-                log_config=None,
-                lifespan="on",
-                loop=args.loop,
-                http=args.http,
+        app = create_app(service, Access(token))  # the clients send the token, as every client must
+        options: dict[str, Any] = {"host": "127.0.0.1", "port": 0, "loop": args.loop}
+        if args.http == "auto":  # station serve's own: httptools with its header timeout and limits
+            config = server_config(app, ServeLimits(), **options)
+        else:
+            config = uvicorn.Config(
+                app, access_log=False, log_config=None, lifespan="on", http=args.http, **options
             )
-        )
+        server = uvicorn.Server(config)
         thread = threading.Thread(target=server.run, daemon=True)
         thread.start()
         while not server.started:

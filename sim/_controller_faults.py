@@ -41,6 +41,12 @@ class Fault(BaseModel):
 
     kind: FaultKind
     at: int = Field(1, ge=1, description="the Nth command line received (counted from injection)")
+    on: str | None = Field(
+        None,
+        min_length=1,
+        description="count only command lines beginning with this text (e.g. 'joint 2'): a fault aimed at"
+        " one command whatever polls the host sends before it",
+    )
     text: str | None = Field(
         None, description="error, servo: the controller's text (lines split on \\n); None: the default"
     )

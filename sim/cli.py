@@ -10,7 +10,7 @@ from station.commands import SubParsers
 log = logging.getLogger(__name__)
 
 # Each module defines ``register(subparsers)`` for its ``station sim`` sub-commands.
-SIM_COMMAND_MODULES = ("sim.imageset_cli", "sim.controller_cli")
+SIM_COMMAND_MODULES = ("sim.imageset_cli", "sim.controller_cli", "sim.target_cli")
 
 
 def register(sub: SubParsers) -> None:

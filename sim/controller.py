@@ -174,7 +174,8 @@ class ControllerTwin:
         self._lock = threading.Lock()
         self._received: deque[str] = deque(maxlen=s.log_limit)
         self._commands_seen = 0
-        self._faults: list[tuple[int, Fault]] = [(f.at, f) for f in s.faults]
+        # [commands left to count, fault]: counted down on every line (or every line the fault is ``on``)
+        self._faults: list[list[Any]] = [[f.at, f] for f in s.faults]
         self._pty = PtyPort()
         self._link_dir: tempfile.TemporaryDirectory[str] | None = None
         self._link: str | None = None if s.link in (None, "auto") else s.link
@@ -261,7 +262,7 @@ class ControllerTwin:
         if isinstance(fault, str):
             fault = parse_fault(fault)
         with self._lock:
-            self._faults.append((self._commands_seen + fault.at, fault))
+            self._faults.append([fault.at, fault])
 
     def set_power(self, on: bool) -> None:
         """Arm power on or off (as the operator would at the controller)."""
@@ -454,13 +455,19 @@ class ControllerTwin:
             if echo:
                 self._write("^C")
 
-    def _take_fault(self, n: int) -> Fault | None:
+    def _take_fault(self, line: str) -> Fault | None:
+        """Count ``line`` against every pending fault; the first whose count reaches zero fires."""
+        fired: Fault | None = None
         with self._lock:
-            for i, (at, fault) in enumerate(self._faults):
-                if at == n:
-                    del self._faults[i]
-                    return fault
-        return None
+            for entry in list(self._faults):
+                fault: Fault = entry[1]
+                if fault.on is not None and not line.strip().lower().startswith(fault.on.strip().lower()):
+                    continue
+                entry[0] -= 1
+                if entry[0] <= 0 and fired is None:
+                    self._faults.remove(entry)
+                    fired = fault
+        return fired
 
     def _on_line(self, line: str) -> None:
         prompt = self.shell.prompt
@@ -471,7 +478,7 @@ class ControllerTwin:
             self._commands_seen += 1
             n = self._commands_seen
             self._received.append(line)
-        fault = self._take_fault(n)
+        fault = self._take_fault(line)
         log.debug("twin <- %r (command %d%s)", line, n, f", fault {fault.kind.value}" if fault else "")
         if fault is not None and fault.kind is FaultKind.DISCONNECT:
             self._do_unplug(fault.replug_after_s)

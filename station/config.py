@@ -175,12 +175,17 @@ class DistanceSensorConfig(DeviceConfig):
 
 
 class ApiConfig(BaseModel):
-    """The service (``station serve``): its access token and whether reads need it on loopback."""
+    """The service (``station serve``): its access token and whether reads need it."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    token: str | None = Field(None, min_length=16, description="the API token (else $STATION_API_TOKEN)")
-    open_reads: bool = Field(True, description="GET endpoints without a token while bound to loopback")
+    token: str | None = Field(
+        None,
+        description="the API token (else $STATION_API_TOKEN), at least 16 characters",
+    )
+    open_reads: bool = Field(
+        False, description="reads (sessions, images, the camera) without the token, as --public-read"
+    )
 
 
 class ComputeConfig(BaseModel):

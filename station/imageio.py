@@ -7,9 +7,10 @@ crash the caller:
 * only regular files are opened: FIFOs, devices and sockets are refused by ``stat`` before anything
   is opened or read (opening a FIFO blocks; reading ``/dev/zero`` never ends);
 * a byte cap (64 MiB by default) is checked from ``stat`` and enforced by a bounded read;
-* a pixel cap (50 Mpx by default) is checked from the format's header before anything is decoded
-  (a 1.5 MB PNG can declare 40000 x 40000 pixels); only formats whose header is parsed here are
-  decoded: PNG, JPEG, TIFF, BMP and PGM/PPM;
+* a pixel cap (50 Mpx by default) and a decoded-size cap (width x height x channels x bytes per
+  sample, 256 MiB by default) are checked from the format's header before anything is decoded (a
+  1.5 MB PNG can declare 40000 x 40000 pixels, or 7000 x 7000 of 16-bit colour: 280 MiB decoded);
+  only formats whose header is parsed here are decoded: PNG, JPEG, TIFF, BMP and PGM/PPM;
 * JPEG is decoded by libjpeg-turbo through ``simplejpeg`` in strict mode, which turns libjpeg's
   "Corrupt JPEG data" warnings into a per-call error (OpenCV only prints them on the process's
   stderr and returns the damaged image); the process's stderr is never redirected;
@@ -36,6 +37,7 @@ Image = npt.NDArray[np.uint8] | npt.NDArray[np.uint16]
 #: Defaults of :class:`ImageLimits`.
 DEFAULT_MAX_BYTES = 64 * 1024 * 1024
 DEFAULT_MAX_PIXELS = 50_000_000
+DEFAULT_MAX_DECODED_BYTES = 256 * 1024 * 1024
 #: Output formats that keep every grey level (``station camera grab``).
 LOSSLESS_SUFFIXES = (".png", ".tif", ".tiff")
 
@@ -53,20 +55,26 @@ class ImageFileError(ValueError):
 
 @dataclass(frozen=True)
 class ImageLimits:
-    """How large an image file may be: bytes on disk and pixels declared by its header."""
+    """How large an image file may be: bytes on disk, pixels declared by its header, and the size of
+    the decoded array its header implies (:attr:`ImageHeader.decoded_bytes`)."""
 
     max_bytes: int = DEFAULT_MAX_BYTES
     max_pixels: int = DEFAULT_MAX_PIXELS
+    max_decoded_bytes: int = DEFAULT_MAX_DECODED_BYTES
 
     def __post_init__(self) -> None:
-        if self.max_bytes < 1 or self.max_pixels < 1:
-            raise ValueError(f"image limits must be positive, got {self.max_bytes} B, {self.max_pixels} px")
+        if self.max_bytes < 1 or self.max_pixels < 1 or self.max_decoded_bytes < 1:
+            raise ValueError(
+                f"image limits must be positive, got {self.max_bytes} B, {self.max_pixels} px, "
+                f"{self.max_decoded_bytes} B decoded"
+            )
 
 
 @dataclass(frozen=True)
 class ImageHeader:
-    """What a file's header declares: format, size (px), channels, bits per sample, and the
-    significant bits per sample where the format records them (PNG's sBIT chunk)."""
+    """What a file's header declares: format, size (px), channels as decoded (a palette or a grey
+    image with alpha decodes to 4), bits per sample, and the significant bits per sample where the
+    format records them (PNG's sBIT chunk)."""
 
     format: str
     width: int
@@ -74,6 +82,11 @@ class ImageHeader:
     channels: int
     bits: int
     significant_bits: int | None = None
+
+    @property
+    def decoded_bytes(self) -> int:
+        """The decoded array's size: width x height x channels x bytes per sample."""
+        return self.width * self.height * self.channels * max(1, -(-self.bits // 8))
 
 
 @dataclass(frozen=True)
@@ -92,7 +105,7 @@ _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 _PNG_END = b"IEND\xaeB`\x82"
 _JPEG_START = b"\xff\xd8"
 _JPEG_END = b"\xff\xd9"
-_PNG_CHANNELS = {0: 1, 2: 3, 3: 3, 4: 2, 6: 4}
+_PNG_CHANNELS = {0: 1, 2: 3, 3: 4, 4: 4, 6: 4}  # as OpenCV decodes them: palette, grey+alpha -> BGRA
 _FORMATS = "PNG, JPEG, TIFF, BMP, PGM/PPM"
 
 
@@ -224,7 +237,8 @@ def _tiff_header(data: bytes) -> ImageHeader:
         raise ValueError(f"TIFF tag {tag} has an unexpected type")
 
     width, height = first(256), first(257)
-    return ImageHeader("TIFF", width, height, max(1, first(277, 1)), first(258, 1))
+    samples = max(1, first(277, 1))
+    return ImageHeader("TIFF", width, height, 4 if samples == 2 else samples, first(258, 1))
 
 
 def _bmp_header(data: bytes) -> ImageHeader:
@@ -235,7 +249,8 @@ def _bmp_header(data: bytes) -> ImageHeader:
         width, height, _, bpp = struct.unpack("<HHHH", data[18:26])
     else:
         width, height, _, bpp = struct.unpack("<iiHH", data[18:30])
-    return ImageHeader("BMP", abs(width), abs(height), 1 if bpp <= 8 else 3, 8)
+    channels = 4 if bpp == 32 else 3  # a palette decodes to BGR
+    return ImageHeader("BMP", abs(width), abs(height), channels, 8)
 
 
 def _pnm_header(data: bytes) -> ImageHeader:
@@ -327,6 +342,13 @@ def decode_image(
             f"{header.format} header declares {header.width}x{header.height} px = {pixels / 1e6:.0f} Mpx, "
             f"over the {lim.max_pixels / 1e6:g} Mpx limit",
         )
+    if header.decoded_bytes > lim.max_decoded_bytes:
+        raise ImageFileError(
+            name,
+            f"{header.format} header declares {header.width}x{header.height} px x {header.channels} "
+            f"channel(s) x {header.bits} bit = {_mib(header.decoded_bytes)} decoded, over the "
+            f"{_mib(lim.max_decoded_bytes)} limit: send a smaller, grey or 8-bit image",
+        )
     _check_complete(name, data)
     try:
         image = _decode(data, header)
@@ -336,7 +358,7 @@ def decode_image(
         raise ImageFileError(name, f"{header.format} data is corrupt or unreadable: {detail}") from None
     if image is None:
         raise ImageFileError(name, f"{header.format} data is corrupt or unreadable (the decoder gave up)")
-    if image.size > lim.max_pixels * 4:
+    if image.size > lim.max_pixels * 4 or image.nbytes > lim.max_decoded_bytes:
         raise ImageFileError(name, "decoded image is larger than its header declared")
     return LoadedImage(image, header)
 

@@ -48,7 +48,14 @@ from typing import Any
 from station.compute import ComputeSpec, open_backend
 from station.plans import get_plan, parse_params
 from station.prompts import Prompt, PromptAnswer, PromptBroker, PromptEvent
-from station.record import EventRow, RecordError, SessionLockError, lock_holder, station_lock
+from station.record import (
+    EventRow,
+    RecordError,
+    RecordUnavailableError,
+    SessionLockError,
+    lock_holder,
+    station_lock,
+)
 from station.runner import (
     FINAL_STATES,
     PreflightError,
@@ -66,6 +73,8 @@ WORKER_NICE = -10
 
 START_TIMEOUT_S = 120.0
 """The longest the front end waits for the worker to build the station's devices."""
+RECORD_RETRY_S = 1.0
+"""How often the worker tries again to record a failure the record could not take (it was unreachable)."""
 
 
 class ConflictError(SessionError):
@@ -119,6 +128,9 @@ class RunnerStatus:
     kind: str
     state: RunnerState
     progress: Progress
+    error: str | None = None
+    """Set when the session failed in a way its runner could not record (the record unreachable, an
+    error of the worker's own): the front end shows it ``failed`` with this reason meanwhile."""
 
 
 DEVICE_NAMES = ("robot", "camera", "table", "distance_sensor")
@@ -198,6 +210,7 @@ class SessionHost:
         self._thread: threading.Thread | None = None
         self._closed = False
         self._moving = False  # the arm is on its way to the reference pose (rpc_to_reference)
+        self._closing = threading.Event()
         self._listeners: list[Callable[[EventRow], None]] = []
         self._prompt_watch: threading.Thread | None = None
         self._prompt_events: list[PromptEvent] = []
@@ -326,8 +339,8 @@ class SessionHost:
     def rpc_act(self, session_id: str, action: str) -> bool:
         """pause, resume, stop or abort this worker's running session; False when it runs no such
         session (the front end then decides from the record)."""
-        runner = self._runner
-        if runner is None or runner.session_id != session_id or runner.state in FINAL_STATES:
+        runner = self._active()
+        if runner is None or runner.session_id != session_id:
             return False
         try:
             getattr(runner, action)()
@@ -343,6 +356,14 @@ class SessionHost:
         thread.join(timeout_s)
         return not thread.is_alive()
 
+    def _active(self) -> SessionRunner | None:
+        """The running session's runner: not ended, and its thread still there (a runner that failed
+        before it could set its own final state has ended all the same)."""
+        runner, thread = self._runner, self._thread
+        if runner is None or runner.state in FINAL_STATES or thread is None or not thread.is_alive():
+            return None
+        return runner
+
     def _station_name(self) -> str:
         config = self.station_config
         return str(config.name) if config is not None else "default"
@@ -351,8 +372,8 @@ class SessionHost:
         with self._lock:
             if self._closed:
                 raise ConflictError("the service is shutting down")
-            current = self._runner
-            if current is not None and current.state not in FINAL_STATES:
+            current = self._active()
+            if current is not None:
                 raise ConflictError(
                     f"session {current.session_id} ({current.plan.name}) is {current.state}: one session "
                     "at a time; wait for it to end, or stop or abort it first"
@@ -395,13 +416,58 @@ class SessionHost:
     def _run(self, runner: SessionRunner) -> None:
         try:
             runner.run()
-        except SessionLockError as exc:
-            log.error("session %s could not start: %s", runner.session_id, exc)
-            if runner.session_id is not None:
-                self.record.set_state(runner.session_id, RunnerState.FAILED, error=str(exc))
+        except Exception as exc:
+            if isinstance(exc, SessionLockError):
+                log.error("session %s could not start: %s", runner.session_id, exc)
+            elif isinstance(exc, RecordError):  # the record's own words say it all
+                log.error("session %s ended: %s", runner.session_id, exc)
+            else:
+                log.exception("session %s ended with an error", runner.session_id)
+            self._failed(runner, exc)
             return
-        except Exception:
-            log.exception("session %s ended with an error", runner.session_id)
+
+    def _failed(self, runner: SessionRunner, exc: BaseException) -> None:
+        """The session ended with an exception its runner did not record (the record gone, an error of
+        the worker's own): the front end learns it now, the record as soon as it can be reached."""
+        sid = runner.session_id
+        if sid is None:
+            return
+        done = runner.progress()
+        status = RunnerStatus(
+            sid,
+            runner.plan.name,
+            RunnerState.FAILED,
+            Progress(done.done, done.total, None),
+            error=str(exc) or type(exc).__name__,
+        )
+        with contextlib.suppress(OSError, ValueError):
+            self._send(("ended", status))
+        threading.Thread(
+            target=self._record_failure, args=(status,), name="record-failure", daemon=True
+        ).start()
+
+    def _record_failure(self, status: RunnerStatus) -> None:
+        """Record ``status``'s failure (unless the session's row already has a final state), trying again
+        every ``RECORD_RETRY_S`` while the record cannot be reached and the worker runs."""
+        sid = status.session_id
+        while not self._closing.is_set():
+            try:
+                row = self.record.get_session(sid)
+                if row.state in FINAL_STATES:
+                    return
+                self.record.set_state(sid, RunnerState.FAILED, error=status.error)
+                event = self.record.add_event(
+                    sid, "state", {"state": str(RunnerState.FAILED), "was": row.state}
+                )
+            except RecordUnavailableError:
+                self._closing.wait(RECORD_RETRY_S)
+                continue
+            except RecordError as exc:
+                log.error("session %s: its failure could not be recorded: %s", sid, exc)
+                return
+            log.info("session %s recorded as failed (%s)", sid, status.error)
+            with contextlib.suppress(OSError, ValueError):
+                self._send(("event", event, status))
             return
 
     # ------------------------------------------------------------------ prompts and the camera
@@ -429,8 +495,7 @@ class SessionHost:
         """One frame from the camera (ConflictError while a session owns it)."""
         self._settle()
         with self._lock:
-            runner = self._runner
-            if runner is not None and runner.state not in FINAL_STATES:
+            if self._active() is not None:
                 raise ConflictError(
                     "a session owns the camera: its latest capture is at /api/v1/sessions/{id}/latest.png"
                 )
@@ -560,6 +625,7 @@ class SessionHost:
             if self._closed:
                 return
             self._closed = True
+        self._closing.set()
         with self._prompt_cond:
             self._prompt_cond.notify_all()
         if self._moving and self.devices is not None and self.devices.robot is not None:
@@ -725,7 +791,8 @@ class StationWorker:
     """The front end's handle on the worker: calls, and the mirror of what the worker reports.
 
     ``on_event(event)`` is called from the handle's reader thread for every event, after ``status``
-    has been updated with it.
+    has been updated with it; ``on_ended(status)`` when the worker's session failed in a way its runner
+    could not record (``status.error`` says why; the record follows once it can be reached).
     """
 
     def __init__(
@@ -734,11 +801,13 @@ class StationWorker:
         *,
         on_event: Callable[[EventRow], None],
         on_exit: Callable[[], None] | None = None,
+        on_ended: Callable[[RunnerStatus], None] | None = None,
         start_timeout_s: float = START_TIMEOUT_S,
     ) -> None:
         here, there = Pipe()
         self._on_event = on_event
         self._on_exit = on_exit
+        self._on_ended = on_ended
         self._pipe = _Pipe(here)
         self._calls: dict[int, Future[Any]] = {}
         self._ids = itertools.count(1)
@@ -805,6 +874,10 @@ class StationWorker:
                 if kind == "event":
                     self.status = message[2]
                     self._on_event(message[1])
+                elif kind == "ended":  # a failure the record could not take (yet): see RunnerStatus.error
+                    self.status = message[1]
+                    if self._on_ended is not None:
+                        self._on_ended(message[1])
                 elif kind == "prompt":
                     shown, pid = message[1], message[2]
                     if shown is not None:

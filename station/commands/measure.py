@@ -23,6 +23,7 @@ from station.commands._ruler_options import add_artifact_options, ruler_params_f
 from station.compute import ComputeError, ComputeSpec, open_backend
 from station.imageio import (
     DEFAULT_MAX_BYTES,
+    DEFAULT_MAX_DECODED_BYTES,
     DEFAULT_MAX_PIXELS,
     ImageFileError,
     ImageLimits,
@@ -70,6 +71,14 @@ def register(sub: SubParsers) -> None:
         metavar="MPX",
         help=f"refuse images whose header declares more pixels (default {DEFAULT_MAX_PIXELS / 1e6:g} Mpx)",
     )
+    p.add_argument(
+        "--max-decoded-mb",
+        type=finite_float("--max-decoded-mb", positive=True),
+        default=DEFAULT_MAX_DECODED_BYTES / 2**20,
+        metavar="MB",
+        help="refuse images whose header declares a larger decoded size, width x height x channels x bytes "
+        f"per sample (MiB; default {DEFAULT_MAX_DECODED_BYTES // 2**20})",
+    )
     add_measure_options(p)
     add_compute_options(p)
     add_artifact_options(p)
@@ -108,7 +117,9 @@ def _measure(
     spec: ComputeSpec,
 ) -> int:
     limits = ImageLimits(
-        max_bytes=max(1, int(args.max_file_mb * 2**20)), max_pixels=max(1, int(args.max_megapixels * 1e6))
+        max_bytes=max(1, int(args.max_file_mb * 2**20)),
+        max_pixels=max(1, int(args.max_megapixels * 1e6)),
+        max_decoded_bytes=max(1, int(args.max_decoded_mb * 2**20)),
     )
     results: list[FileResult] = []
     # progress on stderr, shown only on a terminal (tqdm's disable=None)

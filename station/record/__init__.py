@@ -13,6 +13,7 @@ from station.record._errors import (
     NoRecordError,
     RecordError,
     RecordNotFoundError,
+    RecordUnavailableError,
     RecordWriteError,
     SessionLockError,
 )
@@ -36,6 +37,7 @@ __all__ = [
     "Record",
     "RecordError",
     "RecordNotFoundError",
+    "RecordUnavailableError",
     "RecordWriteError",
     "SessionLockError",
     "SessionRow",

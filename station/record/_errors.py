@@ -2,9 +2,16 @@
 
 from __future__ import annotations
 
+import sqlalchemy as sa
+
 
 class RecordError(RuntimeError):
     """The record cannot do what was asked (bad prefix, changed image file, duplicate import ...)."""
+
+
+class RecordUnavailableError(RecordError):
+    """The database cannot be reached (its server stopped, the connection lost, the file unreadable);
+    nothing was read or written: retry once it is back."""
 
 
 class RecordNotFoundError(RecordError):
@@ -78,3 +85,12 @@ class ArchiveRefusedError(ImportRefusedError):
     """The zip archive itself is refused (not a zip, a bad entry, over a cap)."""
 
     code = "bad_archive"
+
+
+def error_of(exc: sa.exc.DBAPIError) -> type[RecordError]:
+    """The record's exception type for a database error: :class:`RecordUnavailableError` when the
+    database cannot be reached (an operational or interface error: a stopped server, a lost
+    connection, an unreadable file), else :class:`RecordError`."""
+    if isinstance(exc, sa.exc.OperationalError | sa.exc.InterfaceError) or exc.connection_invalidated:
+        return RecordUnavailableError
+    return RecordError

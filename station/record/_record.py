@@ -20,7 +20,7 @@ import sqlalchemy as sa
 
 from station.record import _export
 from station.record._engine import BEGIN_OPTION, open_engine, reason
-from station.record._errors import RecordError, RecordNotFoundError
+from station.record._errors import RecordError, RecordNotFoundError, error_of
 from station.record._format import SESSION_ID
 from station.record._frames import FramesMixin
 from station.record._import import import_export
@@ -134,7 +134,7 @@ class Record(FramesMixin):
                 with conn.begin():
                     yield conn
         except sa.exc.DBAPIError as exc:
-            raise RecordError(
+            raise error_of(exc)(
                 f"cannot write to the record at {self.url}: {reason(exc, self._engine.url)}; nothing of "
                 "this change was recorded (check free space and the database server)"
             ) from exc
@@ -145,7 +145,7 @@ class Record(FramesMixin):
             with self._engine.connect() as conn:
                 yield conn
         except sa.exc.DBAPIError as exc:
-            raise RecordError(
+            raise error_of(exc)(
                 f"cannot read the record at {self.url}: {reason(exc, self._engine.url)}"
             ) from exc
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import cv2
 import numpy as np
 import numpy.typing as npt
@@ -59,24 +61,47 @@ def to_gray8(image: object, *, bit_depth: int | None = None) -> Gray8:
             raise InvalidImageError(f"image has {channels} channels; expected 1 (grey), 3 (BGR) or 4 (BGRA)")
     elif arr.ndim != 2:
         raise InvalidImageError(f"image must be 2-D (grey) or 3-D (colour), got shape {image.shape}")
-    if arr.dtype == np.uint16:
-        bits = image_bit_depth(arr, bit_depth)
-        scaled = np.rint(arr.astype(np.float32) * (255.0 / ((1 << bits) - 1)))
-        arr = (scaled if bits == 16 else np.minimum(scaled, 255.0)).astype(np.uint8)
-    elif arr.dtype != np.uint8:
+    if arr.dtype not in (np.uint8, np.uint16):
         raise InvalidImageError(
             f"image dtype {arr.dtype} is not supported; convert to uint8 or uint16 (grey levels)"
         )
-    if arr.ndim == 3:
-        code = cv2.COLOR_BGR2GRAY if arr.shape[2] == 3 else cv2.COLOR_BGRA2GRAY
-        arr = cv2.cvtColor(np.ascontiguousarray(arr), code)
-    h, w = arr.shape
+    if arr.dtype == np.uint16 or arr.ndim == 3:
+        bits = image_bit_depth(arr, bit_depth) if arr.dtype == np.uint16 else 8
+        arr = _gray8_in_bands(arr, bits)
+    h, w = arr.shape[:2]
     if h < MIN_SIDE_PX or w < MIN_SIDE_PX:
         raise InvalidImageError(
             f"image is {w}x{h} px; at least {MIN_SIDE_PX}x{MIN_SIDE_PX} px are needed "
             "(the nominal frame is 640x480)"
         )
     return np.ascontiguousarray(arr)
+
+
+BAND_SAMPLES = 1 << 20
+"""Samples converted at a time by :func:`to_gray8`: a band's float copy, not the whole frame's."""
+
+
+def _gray8_in_bands(arr: npt.NDArray[np.uint8] | npt.NDArray[np.uint16], bits: int) -> Gray8:
+    """16-bit scaled to 8 (by 255/(2^bits - 1), rounded; saturating above 2^bits - 1) and colour
+    converted as BGR/BGRA, one band of rows at a time. Every output pixel depends on its own input
+    pixel only, so the bands give the whole frame's result exactly; a 45 Mpx 16-bit colour frame then
+    needs a few MB of temporaries instead of two float32 copies of itself (1 GB)."""
+    height, width = arr.shape[:2]
+    out = np.empty((height, width), np.uint8)
+    scale = 255.0 / ((1 << bits) - 1)
+    code = None
+    if arr.ndim == 3:
+        code = cv2.COLOR_BGR2GRAY if arr.shape[2] == 3 else cv2.COLOR_BGRA2GRAY
+    step = max(1, BAND_SAMPLES // max(1, arr[0].size))
+    for top in range(0, height, step):
+        band: npt.NDArray[Any] = arr[top : top + step]
+        if band.dtype == np.uint16:
+            scaled = np.rint(band.astype(np.float32) * scale)
+            band = (scaled if bits == 16 else np.minimum(scaled, 255.0)).astype(np.uint8)
+        if code is not None:
+            band = cv2.cvtColor(np.ascontiguousarray(band), code)
+        out[top : top + step] = band
+    return out
 
 
 def check_quality(gray: Gray8) -> None:

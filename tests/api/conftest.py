@@ -18,7 +18,7 @@ import httpx
 import pytest
 import uvicorn
 
-from api import Access, ServiceSettings, StationService, create_app
+from api import Access, AllowedHosts, ServeLimits, ServiceSettings, StationService, create_app, server_config
 
 TOKEN = "test-token-0123456789abcdef-ABCDEF"
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
@@ -38,22 +38,27 @@ class Served:
         merged = {**(AUTH if token else {}), **(headers or {})}
         return httpx.Client(base_url=self.base, headers=merged, timeout=30.0, **kwargs)
 
+    @property
+    def app(self) -> Any:
+        """The FastAPI app (its ``state``: the access, the limits, ``/measure``'s gate)."""
+        return self.server.config.app
+
     def stop(self) -> None:
         self.server.should_exit = True
         self.thread.join(30)
 
 
-def serve(service: StationService, access: Access) -> Served:
-    app = create_app(service, access)
-    config = uvicorn.Config(
-        app,
-        host="127.0.0.1",
-        port=0,
-        access_log=False,
-        log_config=None,
-        lifespan="on",
-        timeout_graceful_shutdown=2,
-    )
+def serve(
+    service: StationService,
+    access: Access,
+    *,
+    limits: ServeLimits | None = None,
+    hosts: AllowedHosts | None = None,
+) -> Served:
+    """``station serve``'s app and server (its limits and Host check) on 127.0.0.1, any free port."""
+    lim = limits or ServeLimits()
+    app = create_app(service, access, limits=lim, hosts=hosts)
+    config = server_config(app, lim, host="127.0.0.1", port=0, timeout_graceful_shutdown=2)
     server = uvicorn.Server(config)
     thread = threading.Thread(target=server.run, name="uvicorn-test", daemon=True)
     thread.start()
@@ -75,14 +80,23 @@ def data_dir(tmp_path: Path) -> Path:
 
 @pytest.fixture
 def make_served(data_dir: Path) -> Iterator[ServeFactory]:
-    """``make_served(sim=True, manual=False, open_reads=True, **sim_options)`` -> a running server."""
+    """``make_served(sim=True, manual=False, public_read=False, limits=None, database=None,
+    **sim_options)`` -> a running server."""
     started: list[Served] = []
 
     def make(
-        *, sim: bool = True, manual: bool = False, open_reads: bool = True, **sim_options: Any
+        *,
+        sim: bool = True,
+        manual: bool = False,
+        public_read: bool = False,
+        limits: ServeLimits | None = None,
+        database: str | None = None,
+        **sim_options: Any,
     ) -> Served:
-        settings = ServiceSettings(sim=sim, manual_prompts=manual, data=data_dir, sim_options=sim_options)
-        served = serve(StationService(settings), Access(TOKEN, open_reads))
+        settings = ServiceSettings(
+            sim=sim, manual_prompts=manual, data=data_dir, database=database, sim_options=sim_options
+        )
+        served = serve(StationService(settings), Access(TOKEN, public_read), limits=limits)
         started.append(served)
         return served
 

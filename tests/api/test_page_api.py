@@ -27,7 +27,7 @@ def run(c: httpx.Client, kind: str, params: dict[str, object]) -> str:
 
 def test_access_says_whether_the_client_holds_the_token(make_served: ServeFactory) -> None:
     for open_reads in (True, False):
-        served = make_served(open_reads=open_reads)
+        served = make_served(public_read=open_reads)
         wrong = {"Authorization": "Bearer wrong-token-wrong-token"}
         with (
             served.client(token=False) as anonymous,

@@ -101,7 +101,8 @@ def test_the_generated_token_is_printed_once_and_never_logged(tmp_path: Path) ->
         assert len(server.token) >= 32
         with httpx.Client(base_url=server.base, timeout=30, follow_redirects=True) as browser:
             assert browser.get("/", params={"token": server.token}).status_code == 200  # login, redirect
-            assert browser.post("/api/v1/sessions", json={"kind": "nope"}).status_code == 422
+            page = {"Origin": server.base.rstrip("/")}  # the page's own requests carry its origin
+            assert browser.post("/api/v1/sessions", json={"kind": "nope"}, headers=page).status_code == 422
             assert browser.get("/?token=wrong-token-wrong").status_code == 401
         with server.client() as c:
             sid = c.post("/api/v1/sessions", json={**LONG, "params": {"cycles": 3, "joints": [1]}}).json()[

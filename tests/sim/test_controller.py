@@ -270,6 +270,18 @@ def test_fault_error_replaces_the_command(twin_and_term):
     assert twin.motion_log == []
 
 
+def test_fault_on_a_command_skips_the_lines_before_it(twin_and_term):
+    twin, term = twin_and_term
+    twin.inject(Fault(kind=FaultKind.ERROR, on="joint 2", text="joint: 007 Arm power is OFF"))
+    for line in (b"w0\r", b"joint 1 10\r", b"w0\r"):  # none of these is joint 2: all answered
+        term.type(line)
+        assert b"Arm power" not in term.until(b"$ ")
+    term.type(b"joint 2 5\r")
+    assert term.until(b"$ ") == b"joint 2 5\r\njoint: 007 Arm power is OFF\r\n$ "
+    term.type(b"joint 2 5\r")  # fired once
+    assert b"Arm power" not in term.until(b"$ ")
+
+
 def test_fault_slow_delays_the_reply(twin_and_term):
     twin, term = twin_and_term
     twin.inject(Fault(kind=FaultKind.SLOW, delay_s=0.2))

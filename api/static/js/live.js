@@ -102,8 +102,9 @@ export function sessionChanged() {
 /** Between sessions, every few seconds: the camera now. */
 export function idleTick(force = false) {
   const s = page.station;
-  if (!canRead() || page.connection !== "ok" || page.running || page.starting || page.actions || !s) return;
+  if (!canRead() || page.connection !== "ok" || page.running || page.starting || page.actions || page.moving || !s) return;
   if (!s.devices || !s.devices.camera || (s.worker && s.worker.alive === false)) return;
+  if (s.devices.robot && s.devices.robot.state === "busy") return; // the arm is on its way somewhere
   if (document.visibilityState !== "visible") return;
   const now = Date.now();
   if (!force && now - lastIdle < IDLE_MS) return;

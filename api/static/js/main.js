@@ -38,8 +38,8 @@ async function checkAccess() {
   note.hidden = a.authenticated;
   if (!a.authenticated) {
     note.textContent = a.open_reads
-      ? "Read-only: log in with the URL that station serve prints to control the station."
-      : "Log in with the URL that station serve prints: without it this page can show nothing of the station.";
+      ? "Read-only: open the login URL that station serve printed (it ends in ?token=...) to control the station."
+      : "Not logged in: open the login URL that station serve printed (it ends in ?token=...): without it this page can show nothing of the station.";
   }
   if (a.authenticated) openEvents();
   if (!a.authenticated && accessTimer === null) accessTimer = setInterval(recheckAccess, ACCESS_POLL_MS);

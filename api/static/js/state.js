@@ -24,6 +24,9 @@ export const page = {
    * before an action answered may be stale, and nothing that a stale reading suggests is asked for. */
   actions: 0,
   epoch: 0,
+  /** Set while this page's request to take the arm to its reference pose runs: the camera is not asked
+   * meanwhile (the worker moves the arm and answers 409 to a snapshot). */
+  moving: false,
 };
 
 /** Whether this client may act (it holds the token) and the service answers. */

@@ -107,6 +107,7 @@ async function toReference() {
   $("to-reference-confirm").hidden = true;
   $("to-reference").disabled = true;
   $("robot-message").textContent = "moving to the reference pose…";
+  page.moving = true;
   try {
     const reply = await api("POST", "/station/robot/to-reference", undefined, { timeoutMs: 600000 });
     const moves = Array.isArray(reply?.moves) ? reply.moves.length : null;
@@ -115,6 +116,8 @@ async function toReference() {
   } catch (e) {
     const problems = Array.isArray(e.doc?.problems) ? ` (${e.doc.problems.join("; ")})` : "";
     $("robot-message").textContent = `not moved to the reference pose: ${e.message}${problems}`;
+  } finally {
+    page.moving = false;
   }
   refresh();
 }

@@ -85,19 +85,19 @@ def test_a_session_start_makes_no_request_that_fails(make_served: ServeFactory, 
 def test_without_login_the_page_says_so_before_anything_fails(
     make_served: ServeFactory, browser: Any, open_reads: bool
 ) -> None:
-    served = make_served(open_reads=open_reads)
+    served = make_served(public_read=open_reads)
     visit = open_page(browser, served.base, login=False)
     page = visit.page
     page.wait_for_selector("#auth-note:not([hidden])")
     note = page.text_content("#auth-note") or ""
     if open_reads:
-        assert note.startswith("Read-only: log in with the URL that station serve prints")
+        assert note.startswith("Read-only: open the login URL that station serve printed")
         page.wait_for_function("document.querySelectorAll('#kind option').length > 0")
         page.wait_for_function("document.querySelector('#robot-section').dataset.state === 'idle'")
         for control in ("#start", "#kind", "#to-reference"):
             assert page.is_disabled(control), control
     else:
-        assert note.startswith("Log in with the URL that station serve prints")
+        assert note.startswith("Not logged in: open the login URL that station serve printed")
     assert page.evaluate("document.body.dataset.access") == ("read" if open_reads else "none")
     assert visit.failed == []  # no 401: nothing was asked that needs the token
     assert visit.console_errors == []

@@ -63,7 +63,7 @@ RAPL_OTHER = "Process 7: exception raised (code = 'Servo fault')\n  in module '.
 def test_controller_error_on_the_nth_command(make_twin, robot_on, text, error):
     twin = make_twin()
     robot = robot_on(twin)
-    twin.inject(Fault(kind=FaultKind.ERROR, at=3, text=text))  # w0, joint 1, joint 2 <- here
+    twin.inject(Fault(kind=FaultKind.ERROR, on="joint 2", text=text))  # whatever polls came before it
     with pytest.raises(error):
         robot.move_joints((1.0, 1.0, 90.0, 0.0, 90.0, 0.0))
     assert robot.where().commanded_joints_deg == (1.0, 0.0, 90.0, 0.0, 90.0, 0.0)  # stopped at the error

@@ -1,0 +1,355 @@
+"""The simulated camera looking at the camera-calibration target, through its true lens, with exact truth.
+
+The target (``station.camcal.CharucoTarget``) is a face of black and white cells on a grid: chessboard
+squares and marker bits, ``cell_mm`` apart. The renderer is the crossed-groove artifact's
+(``sim._render_geometry``): each pixel's value is the average over its square of the scene blurred by the
+optics' Gaussian, and for a straight edge that is ``box_step`` of the pixel's signed distance to it. Here
+every pixel centre is traced back through the true camera (``sim.lens``: OpenCV's pinhole and distortion,
+inverted to 1e-6 px or better) onto the target's plane, where the cell lines around it are straight; the
+coverage of each cell column and row is the difference of two ``box_step`` values, and the pixel the sum
+over the cells near it of (column coverage) x (row coverage) x (the cell's reflectance). Exact along an
+edge; at a corner the product of the two directions is exact for edges along the pixel grid and, like the
+artifact's land corners, point-symmetric otherwise, so a chessboard corner's image is its true position.
+
+Defocus: the blur grows with the distance from the focal plane, ``hypot(preset blur, defocus_px_per_mm
+x |depth - focus_mm|)`` as ``sim.world`` has it, point by point for a tilted target: the light of each
+point of the in-focus image is spread further by a Gaussian whose sigma follows its depth, interpolated
+between a stack of blurs (an approximation). Grey levels, vignetting and the sensor's
+read and shot noise come from the noise preset (``sim.presets``); the target is clean (no texture,
+scratches or glints).
+
+Truth (:class:`TargetTruth`): every corner's image by OpenCV's ``projectPoints`` with the true camera,
+its depth and blur, and the pose.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+from sim._render_features import vignetting_map
+from sim._render_geometry import Float32Array, FloatArray, box_step, cutoff_px
+from sim.distance_sensor import HeadModel, beam_hit
+from sim.presets import NoisePreset, get_preset
+from station.camcal import STANDARD_TARGET, CharucoTarget, ViewSpec
+from station.camera_model import CameraIntrinsics
+
+__all__ = [
+    "F4_DEFOCUS_PX_PER_MM",
+    "WORLD_DEFOCUS_PX_PER_MM",
+    "TargetPose",
+    "TargetTruth",
+    "render_target",
+    "sensor_distance",
+    "sensor_readout",
+]
+
+F4_DEFOCUS_PX_PER_MM = 3.1
+"""The blur's growth for the seed's optics at f/4: a 1X macro lens (magnification m = 1, working f-number
+N (1 + m) = 8) spreads a point 1 mm from focus over a disc of 1 mm / 8 = 125 um on the sensor, 12.5 px at
+the grabber's 10 um/px; a uniform disc of diameter D has a standard deviation of D / 4 per axis: 3.1 px
+per mm."""
+
+WORLD_DEFOCUS_PX_PER_MM = 20.0
+"""``sim.world.WorldSpec.defocus_px_per_mm``'s default: an f/0.6 lens by the reckoning above."""
+
+_UNDISTORT_TOL_PX = 1e-6
+_BLUR_LEVELS = np.array(
+    [0.0, 0.35, 0.7, 1.0, 1.4, 2.0, 2.8, 4.0, 5.6, 8.0, 11.0, 16.0, 22.0, 32.0, 45.0, 64.0]
+)
+
+
+@dataclass(frozen=True)
+class TargetPose:
+    """The target's frame in the camera's: ``X_cam = rotation @ X_target + translation_mm``."""
+
+    rotation: FloatArray
+    translation_mm: FloatArray
+
+    def __post_init__(self) -> None:
+        R = np.array(self.rotation, dtype=np.float64).reshape(3, 3)
+        t = np.array(self.translation_mm, dtype=np.float64).reshape(3)
+        if not np.allclose(R @ R.T, np.eye(3), atol=1e-9) or np.linalg.det(R) < 0:
+            raise ValueError("rotation must be a proper rotation matrix")
+        if not np.all(np.isfinite(t)):
+            raise ValueError("translation_mm must be finite")
+        object.__setattr__(self, "rotation", R)
+        object.__setattr__(self, "translation_mm", t)
+
+    @classmethod
+    def from_view(
+        cls, view: ViewSpec, *, target: CharucoTarget = STANDARD_TARGET, working_distance_mm: float = 68.0
+    ) -> TargetPose:
+        """The target's pose in the camera after ``view``'s motion from the square pose (target centred)."""
+        w, h = target.size_mm
+        square = np.eye(4)
+        square[:3, 3] = (-w / 2.0, -h / 2.0, working_distance_mm)
+        T = np.linalg.solve(view.camera_motion(working_distance_mm), square)
+        return cls(np.asarray(T[:3, :3], dtype=np.float64), np.asarray(T[:3, 3], dtype=np.float64))
+
+    @property
+    def rvec(self) -> FloatArray:
+        """The rotation as OpenCV's Rodrigues vector."""
+        return np.asarray(cv2.Rodrigues(self.rotation)[0].ravel(), dtype=np.float64)
+
+
+@dataclass(frozen=True, eq=False)
+class TargetTruth:
+    """Ground truth of one target image.
+
+    ``corners_px`` (N, 2): every corner's image (row = corner id), NaN behind the camera; ``in_frame``
+    (N,): inside the image (pixel centres 0 .. size - 1); ``depth_mm`` (N,): along the optical axis;
+    ``blur_px`` (N,): the optics' blur sigma there; ``pose``; ``intrinsics``: the true camera.
+    """
+
+    corners_px: FloatArray
+    in_frame: npt.NDArray[np.bool_]
+    depth_mm: FloatArray
+    blur_px: FloatArray
+    pose: TargetPose
+    intrinsics: CameraIntrinsics
+
+
+def _pixel_rays(intrinsics: CameraIntrinsics, shape: tuple[int, int]) -> FloatArray:
+    """Undistorted normalised coordinates of every pixel centre, (h, w, 2), checked by re-projection."""
+    h, w = shape
+    ys, xs = np.mgrid[0:h, 0:w].astype(np.float64)
+    px = np.stack([xs.ravel(), ys.ravel()], axis=1).reshape(-1, 1, 2)
+    K, dist = intrinsics.camera_matrix, intrinsics.dist_coeffs
+    rays = np.asarray(cv2.undistortPoints(px, K, dist), dtype=np.float64).reshape(-1, 2)
+    # The inversion fails first where the distortion is strongest, at the frame's edge: check the edge
+    # rows and columns and every 7th pixel, and the rest only if any of those fails.
+    grid = np.zeros((h, w), dtype=bool)
+    grid[::7, ::7] = grid[[0, -1], :] = grid[:, [0, -1]] = True
+    sample = np.flatnonzero(grid.ravel())
+    back = _project(np.column_stack([rays[sample], np.ones(sample.size)]), K, dist)
+    if np.max(np.hypot(*(back - px[sample].reshape(-1, 2)).T)) > _UNDISTORT_TOL_PX:
+        back = _project(np.column_stack([rays, np.ones(len(rays))]), K, dist)
+        sample = np.arange(h * w)
+    bad = sample[np.hypot(*(back - px[sample].reshape(-1, 2)).T) > _UNDISTORT_TOL_PX]
+    if bad.size:
+        criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-15)
+        exact = cv2.undistortPointsIter(px[bad], K, dist, np.eye(3), np.eye(3), criteria)
+        rays[bad] = np.asarray(exact, dtype=np.float64).reshape(-1, 2)
+        back = _project(np.column_stack([rays[bad], np.ones(bad.size)]), K, dist)
+        if np.max(np.hypot(*(back - px[bad].reshape(-1, 2)).T)) > _UNDISTORT_TOL_PX:
+            raise ValueError("the lens's distortion cannot be inverted over the image: it is too strong")
+    return rays.reshape(h, w, 2)
+
+
+def _project(points: FloatArray, K: FloatArray, dist: FloatArray) -> FloatArray:
+    out, _ = cv2.projectPoints(points.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), K, dist)
+    return np.asarray(out.reshape(-1, 2), dtype=np.float64)
+
+
+def _axis_coverage(
+    coord: FloatArray, grad: FloatArray, cell_mm: float, sigma_px: float
+) -> tuple[npt.NDArray[np.intp], FloatArray]:
+    """First cell index near each pixel and the coverage of the cells from it, ``(h, w)`` and ``(k, h, w)``.
+
+    ``coord``: the target coordinate (mm) at each pixel centre; ``grad``: its image gradient (mm/px),
+    ``(h, w, 2)``. Cell ``i`` spans ``[i, i + 1] * cell_mm``; its coverage is the difference of the
+    blurred pixel fractions beyond its two lines.
+    """
+    norm = np.hypot(grad[..., 0], grad[..., 1])
+    reach_mm = cutoff_px(sigma_px) * norm
+    first = np.floor((coord - reach_mm) / cell_mm).astype(np.intp)
+    count = int(np.max(np.floor((coord + reach_mm) / cell_mm).astype(np.intp) - first)) + 1
+    cos_abs, sin_abs = np.abs(grad[..., 0]) / norm, np.abs(grad[..., 1]) / norm
+    cut = cutoff_px(sigma_px)
+    beyond = []
+    for k in range(count + 1):
+        d = (coord - (first + k) * cell_mm) / norm
+        out = (d > 0.0).astype(np.float64)  # beyond the cut-off a pixel is on one side (box_step's 1e-13)
+        near = np.abs(d) < cut
+        out[near] = box_step(d[near], cos_abs[near], sin_abs[near], sigma_px)
+        beyond.append(out)
+    return first, np.stack([beyond[k] - beyond[k + 1] for k in range(count)])
+
+
+def _defocus(image: FloatArray, sigma_px: FloatArray) -> FloatArray:
+    """``image`` defocused: each pixel's light spread by a Gaussian of its own ``sigma_px``.
+
+    Each scene point's light spreads by the blur of its own depth (a scattering model: a tilted target's
+    nearer side blurs into the farther one as a lens does). The image is split between a stack of blur
+    levels by linear interpolation in sigma, pixel by pixel, and each part blurred by its level.
+    """
+    top = float(np.max(sigma_px))
+    if top < 0.05:
+        return image
+    if top > _BLUR_LEVELS[-1]:
+        raise ValueError(f"defocus blur of {top:.0f} px is beyond the renderer's {_BLUR_LEVELS[-1]:.0f} px")
+    levels = _BLUR_LEVELS[: int(np.searchsorted(_BLUR_LEVELS, top)) + 1]
+    idx = np.clip(np.searchsorted(levels, sigma_px, side="right") - 1, 0, len(levels) - 2)
+    lo, hi = levels[idx], levels[idx + 1]
+    frac = np.clip((sigma_px - lo) / (hi - lo), 0.0, 1.0)
+    out = np.zeros(image.shape, dtype=np.float64)
+    for k, s in enumerate(levels):
+        weight = np.where(idx == k, 1.0 - frac, 0.0) + np.where(idx == k - 1, frac, 0.0)
+        if not weight.any():
+            continue
+        part = (image * weight).astype(np.float32)
+        if s > 0.0:
+            part = cv2.GaussianBlur(part, (0, 0), float(s), borderType=cv2.BORDER_REFLECT)
+        out += part
+    return out
+
+
+def sensor_readout(
+    clean: Float32Array, preset: NoisePreset, rng: np.random.Generator
+) -> npt.NDArray[np.uint8]:
+    """The 8-bit frame the sensor gives for the noise-free grey levels ``clean`` (DN).
+
+    Read and shot noise (variance ``read^2 + gain * signal``), rounding, clipping to 0-255, then salt and
+    pepper: the noise model of ``sim.artifact.render``, in the same order.
+    """
+    shape = clean.shape
+    variance = np.float32(preset.read_noise_dn**2) + np.float32(preset.shot_noise_gain_dn_per_e) * np.maximum(
+        clean, 0
+    )
+    noisy = clean + np.sqrt(variance) * rng.standard_normal(shape, dtype=np.float32)
+    image = np.clip(np.rint(noisy), 0, 255).astype(np.uint8)
+    if preset.salt_pepper_fraction > 0:
+        flat = image.reshape(-1)
+        count = int(rng.binomial(flat.size, preset.salt_pepper_fraction))
+        flat[rng.integers(0, flat.size, count)] = rng.integers(0, 2, count, dtype=np.uint8) * np.uint8(255)
+    return image
+
+
+def render_target(
+    pose: TargetPose,
+    *,
+    intrinsics: CameraIntrinsics,
+    target: CharucoTarget = STANDARD_TARGET,
+    preset: NoisePreset | str = "nominal",
+    focus_mm: float = 68.0,
+    defocus_px_per_mm: float = 20.0,
+    rng: np.random.Generator,
+) -> tuple[npt.NDArray[np.uint8], TargetTruth]:
+    """Render one 8-bit frame of the calibration target, with its ground truth.
+
+    Parameters
+    ----------
+    pose : TargetPose
+        The target's frame in the camera's (mm).
+    intrinsics : CameraIntrinsics
+        The true camera (its ``image_size`` is the frame's).
+    target : CharucoTarget
+        The target; its markers and margins must be whole numbers of marker bits.
+    preset : NoisePreset or str
+        Blur (in focus), grey levels (black: ``paint_level_dn``, white: ``land_level_dn``), noise and
+        vignetting.
+    focus_mm : float
+        Distance of the focal plane along the optical axis, mm (the working distance).
+    defocus_px_per_mm : float
+        Growth of the blur sigma with the distance from the focal plane, px per mm (``sim.world``'s).
+    rng : numpy.random.Generator
+        The frame's noise.
+
+    Returns
+    -------
+    image : numpy.ndarray, (height, width) uint8
+    truth : TargetTruth
+    """
+    if intrinsics.image_size is None:
+        raise ValueError("the true camera needs its image size")
+    if not (
+        np.isfinite(focus_mm) and focus_mm > 0 and np.isfinite(defocus_px_per_mm) and defocus_px_per_mm >= 0
+    ):
+        raise ValueError("focus_mm must be > 0 and defocus_px_per_mm >= 0")
+    n = target.cells_per_square()
+    if n is None:
+        raise ValueError(
+            "the twin renders targets whose markers and margins are whole numbers of marker bits"
+        )
+    p = get_preset(preset) if isinstance(preset, str) else preset
+    width, height = intrinsics.image_size
+    shape = (height, width)
+    R, t = pose.rotation, pose.translation_mm
+    rays = _pixel_rays(intrinsics, shape)
+    # Target point (u, v) seen by each pixel: (u, v, 1) ~ inv([r1 r2 t]) (x, y, 1).
+    inv_h = np.linalg.inv(np.column_stack([R[:, 0], R[:, 1], t]))
+    hom = np.concatenate([rays, np.ones((*shape, 1))], axis=2) @ inv_h.T
+    if np.any(hom[..., 2] <= 0):
+        raise ValueError("the target's plane does not fill the view in front of the camera (horizon in view)")
+    u, v = hom[..., 0] / hom[..., 2], hom[..., 1] / hom[..., 2]
+    depth = (R[2, 0] * u + R[2, 1] * v) + t[2]
+    cell = target.square_mm / n
+    du_dy, du_dx = np.gradient(u)
+    dv_dy, dv_dx = np.gradient(v)
+    gu = np.stack([du_dx, du_dy], axis=-1)
+    gv = np.stack([dv_dx, dv_dy], axis=-1)
+    col0, cols = _axis_coverage(u, gu, cell, p.blur_sigma_px)
+    row0, rows = _axis_coverage(v, gv, cell, p.blur_sigma_px)
+    face = target.pattern(n).astype(np.float64) / 255.0
+    pad = max(cols.shape[0], rows.shape[0]) + 1
+    i_lo, j_lo = int(col0.min()) - pad, int(row0.min()) - pad
+    i_hi, j_hi = int(col0.max()) + cols.shape[0] + pad, int(row0.max()) + rows.shape[0] + pad
+    board = np.ones((j_hi - j_lo, i_hi - i_lo))  # white beyond the pattern
+    js, is_ = max(0, -j_lo), max(0, -i_lo)
+    je, ie = min(board.shape[0], face.shape[0] - j_lo), min(board.shape[1], face.shape[1] - i_lo)
+    if je > js and ie > is_:
+        board[js:je, is_:ie] = face[js + j_lo : je + j_lo, is_ + i_lo : ie + i_lo]
+    reflect = np.zeros(shape)
+    for k in range(cols.shape[0]):
+        for m in range(rows.shape[0]):
+            reflect += cols[k] * rows[m] * board[row0 + m - j_lo, col0 + k - i_lo]
+    reflect = _defocus(reflect, defocus_px_per_mm * np.abs(depth - focus_mm))
+    clean = (p.paint_level_dn + reflect * (p.land_level_dn - p.paint_level_dn)).astype(np.float32)
+    clean *= vignetting_map(shape, p.vignetting)
+    image = sensor_readout(clean, p, rng)
+    return image, _truth(target, pose, intrinsics, focus_mm, p.blur_sigma_px, defocus_px_per_mm)
+
+
+def sensor_distance(
+    pose: TargetPose,
+    mount: npt.ArrayLike,
+    *,
+    rng: np.random.Generator,
+    head: HeadModel = HeadModel(),  # noqa: B008 - frozen model, immutable
+    samples: int = 10,
+) -> float:
+    """What the distance sensor beside the camera reads of the plane the target lies in, mm (averaged).
+
+    ``mount``: the head's 4x4 pose in the camera frame; the plane is the target's (the table it lies on,
+    parallel to it). Each sample is the true distance along the beam plus the head's repeatability noise,
+    shown at its resolution, as ``sim.distance_sensor`` answers; ``samples`` of them are averaged.
+    """
+    plane = np.eye(4)
+    plane[:3, :3], plane[:3, 3] = pose.rotation, pose.translation_mm
+    hit = beam_hit(np.asarray(mount, dtype=np.float64), plane)
+    if hit.distance_mm is None:
+        raise ValueError("the sensor's beam does not meet the target's plane")
+    noisy = hit.distance_mm + rng.normal(0.0, head.repeatability_mm, samples)
+    shown = np.round(noisy / head.resolution_mm) * head.resolution_mm
+    return float(np.mean(shown))
+
+
+def _truth(
+    target: CharucoTarget,
+    pose: TargetPose,
+    intrinsics: CameraIntrinsics,
+    focus_mm: float,
+    blur_px: float,
+    defocus_px_per_mm: float,
+) -> TargetTruth:
+    pts = target.corners_mm()
+    cam = pts @ pose.rotation.T + pose.translation_mm
+    corners, _ = cv2.projectPoints(
+        pts, pose.rvec, pose.translation_mm, intrinsics.camera_matrix, intrinsics.dist_coeffs
+    )
+    corners = np.asarray(corners, dtype=np.float64).reshape(-1, 2)
+    corners[cam[:, 2] <= 0] = np.nan
+    assert intrinsics.image_size is not None
+    w, h = intrinsics.image_size
+    with np.errstate(invalid="ignore"):
+        inside = (
+            (corners[:, 0] >= 0) & (corners[:, 0] <= w - 1) & (corners[:, 1] >= 0) & (corners[:, 1] <= h - 1)
+        )
+    blur = np.hypot(blur_px, defocus_px_per_mm * (cam[:, 2] - focus_mm))
+    for arr in (corners, inside, cam, blur):
+        arr.setflags(write=False)
+    return TargetTruth(corners, inside, cam[:, 2].copy(), blur, pose, intrinsics)
