@@ -59,6 +59,7 @@ bench: setup
 	$(BIN)/python -m bench.calibration_session_bench
 	$(BIN)/python -m bench.cross_check_bench
 	$(BIN)/python -m bench.camcal_bench
+	$(BIN)/python -m bench.page_screens --out $(OUT)/page
 
 clean:
 	rm -rf $(VENV) $(OUT) .mypy_cache .ruff_cache .pytest_cache

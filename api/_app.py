@@ -18,6 +18,7 @@ from api._gate import DecodeGate
 from api._page import STATIC
 from api._page import router as page_router
 from api._routes_events import router as events_router
+from api._routes_plans import router as plans_router
 from api._routes_prompt import router as prompt_router
 from api._routes_scale_calibration import router as scale_calibration_router
 from api._routes_sessions import router as sessions_router
@@ -71,9 +72,9 @@ def create_app(
         title="Robot calibration station",
         version=__version__,
         description="Sessions, measurements, operator prompts and live events of the station. Everything "
-        "but /health needs the station's token (Bearer, or the cookie the login URL sets; a cookie "
-        "request must come from the station's own page), unless station serve --public-read opens the "
-        "reads.",
+        "but /health and /access need the station's token (Bearer, or the cookie the login URL sets; a "
+        "cookie request must come from the station's own page), unless station serve --public-read opens "
+        "the reads.",
         lifespan=lifespan,
         openapi_url="/api/v1/openapi.json",
         docs_url="/api/v1/docs",
@@ -94,6 +95,7 @@ def create_app(
     app.add_middleware(HostCheck, hosts=hosts or AllowedHosts.of())
     for router in (
         station_router,
+        plans_router,
         scale_calibration_router,
         sessions_router,
         prompt_router,

@@ -36,6 +36,27 @@ class Health(BaseModel):
     version: str
 
 
+class AccessModel(BaseModel):
+    """What the client may do: ``authenticated`` (it sent the station's token, or the login cookie) and
+    ``open_reads`` (reads need no token)."""
+
+    authenticated: bool
+    open_reads: bool
+
+
+class PlanModel(BaseModel):
+    """A session kind: its name, the devices it drives, and its parameters' JSON schema (every
+    parameter's default shown, including those computed when a session is created)."""
+
+    name: str
+    needs: list[str]
+    params_schema: dict[str, Any]
+
+
+class PlanList(BaseModel):
+    plans: list[PlanModel]
+
+
 SessionModel = SessionResource
 OutcomeModel = SessionOutcome
 
@@ -160,3 +181,7 @@ class StationModel(BaseModel):
     worker: dict[str, Any] | None = None
     """The station's worker process (``alive``, ``pid``, ``nice``): it owns the devices and runs the
     sessions."""
+    robot: dict[str, Any] | None = None
+    """The robot's state and pose, read between sessions (``state``: ``reading``, ``idle``,
+    ``in_session`` or ``unreachable``; ``power``, ``homed``, ``joints_deg``, ``commanded_joints_deg``,
+    ``reference_joints_deg``, ``at_reference``, ``read_at``, ``error``); None without a robot."""

@@ -5,6 +5,7 @@ shows the refusal written under it, and the response carries it beside the pictu
 
 from __future__ import annotations
 
+import json
 import textwrap
 from dataclasses import dataclass
 from typing import Any
@@ -31,14 +32,15 @@ class Picture:
 
 
 def measurement_headers(result: dict[str, Any] | None) -> dict[str, str]:
-    """The measurement beside the picture: ``X-Measurement-Ok`` (``true``/``false``), and for a refused
-    frame ``X-Measurement-Code`` and ``X-Measurement-Error`` (ASCII, at most 500 characters); none when
-    the frame was not measured."""
+    """The measurement beside the picture: ``X-Measurement-Ok`` (``true``/``false``), for a refused
+    frame ``X-Measurement-Code`` and ``X-Measurement-Error`` (ASCII, at most 500 characters), and its
+    numbers in ``X-Measurement`` (:func:`measurement_header`); none when the frame was not measured."""
     if result is None:
         return {}
     if result.get("ok"):
-        return {"X-Measurement-Ok": "true"}
+        return {"X-Measurement-Ok": "true", **measurement_header(result)}
     return {
+        **measurement_header(result),
         "X-Measurement-Ok": "false",
         "X-Measurement-Code": _ascii(str(result.get("code") or "unknown"))[:MAX_HEADER_CHARS],
         "X-Measurement-Error": _ascii(str(result.get("error") or "not measured"))[:MAX_HEADER_CHARS],
@@ -103,3 +105,19 @@ def _clip_line(
         return None
     (x0, y0), (x1, y1) = pts[0], pts[-1]
     return (round(x0), round(y0)), (round(x1), round(y1))
+
+
+MEASUREMENT_HEADER = "X-Measurement"
+"""The response header of a live-view picture that carries its measurement's numbers (JSON, ASCII)."""
+
+
+def measurement_header(result: dict[str, Any] | None) -> dict[str, str]:
+    """``{"X-Measurement": JSON}`` with the measurement's ``ok``, ``center_px``, ``center_mm``, ``code``
+    and ``error`` (the numbers the page shows under the picture); empty without a measurement."""
+    if result is None:
+        return {}
+    keys = ("ok", "center_px", "center_mm", "code", "error")
+    doc = {k: result.get(k) for k in keys if result.get(k) is not None}
+    if "error" in doc:
+        doc["error"] = str(doc["error"])[:MAX_HEADER_CHARS]
+    return {MEASUREMENT_HEADER: json.dumps(doc, ensure_ascii=True, allow_nan=False, default=str)}

@@ -16,6 +16,14 @@ STATIC = Path(__file__).parent / "static"
 router = APIRouter(include_in_schema=False)
 
 
+@router.get("/favicon.ico")
+async def favicon() -> FileResponse:
+    """The station's icon (browsers ask for this path even when the page names its icon)."""
+    return FileResponse(
+        STATIC / "favicon.svg", media_type="image/svg+xml", headers={"Cache-Control": "max-age=86400"}
+    )
+
+
 @router.get("/")
 async def page(request: Request, token: str | None = None) -> Response:
     if token is not None:

@@ -186,7 +186,8 @@ async def results(request: Request, session_id: SessionId, format: Literal["json
             "no_table",
         )
     buf = io.StringIO()
-    writer = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
+    columns = list(dict.fromkeys(k for row in rows for k in row))  # every row's keys, in order of first use
+    writer = csv.DictWriter(buf, fieldnames=columns, restval="", lineterminator="\n")
     writer.writeheader()
     writer.writerows(rows)
     return Response(
@@ -197,7 +198,16 @@ async def results(request: Request, session_id: SessionId, format: Literal["json
 
 
 def table_rows(kind: str, results: dict[str, Any]) -> list[dict[str, Any]]:
-    """The per-position rows of a validation, the per-cycle rows of a repeatability session."""
+    """The per-position rows of a validation, the per-cycle rows of a repeatability session, the
+    per-parameter rows of a calibration, the per-trial rows of a sweep; a re-analysis's as its kind's."""
+    if kind == "reanalyse":
+        inner = results.get("kind")
+        body = results.get(inner) if isinstance(inner, str) else None
+        return table_rows(inner, body) if isinstance(inner, str) and isinstance(body, dict) else []
+    if kind == "calibration":
+        return [_parameter_row(p) for p in results.get("parameters") or [] if isinstance(p, dict)]
+    if kind == "sweep":
+        return [_flat(t) for t in results.get("trials") or [] if isinstance(t, dict)]
     if kind == "validation":
         return [_flat(p) for p in results.get("positions", [])]
     if kind == "repeatability":
@@ -215,6 +225,22 @@ def table_rows(kind: str, results: dict[str, Any]) -> list[dict[str, Any]]:
                 )
         return out
     return []
+
+
+def _parameter_row(p: dict[str, Any]) -> dict[str, Any]:
+    """One identified (or fixed) parameter of a calibration: its 95 % interval as two columns."""
+    interval = p.get("interval") or [None, None]
+    return {
+        "name": p.get("name"),
+        "unit": p.get("unit"),
+        "nominal": p.get("nominal"),
+        "estimate": p.get("estimate"),
+        "interval_low": interval[0],
+        "interval_high": interval[1],
+        "sigma": p.get("sigma"),
+        "identified": p.get("identified"),
+        "structural": p.get("structural"),
+    }
 
 
 def _flat(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
@@ -269,21 +295,28 @@ async def figures(request: Request, session_id: SessionId) -> dict[str, list[str
     return {"figures": sorted(p.name for p in folder.iterdir() if p.suffix in (".png", ".svg"))}
 
 
+_HEAD = re.compile(r"<head>", re.IGNORECASE)
+
+
 @router.get(
     "/{session_id}/report.html",
     dependencies=[Depends(read_access)],
-    response_class=FileResponse,
+    response_class=Response,
     responses={
         200: {"description": "the report page", "content": {"text/html": {"schema": {"type": "string"}}}},
         **problems(*ONE, s409=REPORT_409),
     },
 )
-async def report(request: Request, session_id: SessionId) -> FileResponse:
+async def report(request: Request, session_id: SessionId) -> Response:
+    """The report's HTML page. Its links to the figure files are relative (``name.png``: they work in the
+    report's folder on disk); served here, a ``<base>`` points them at the figure route."""
     folder = await run_in_threadpool(service_of(request).report_dir, session_id)
     pages = sorted(folder.glob("*.html"))
     if not pages:
         raise ApiError(409, "the report has no HTML page", "no_report")
-    return FileResponse(pages[0], media_type="text/html")
+    text = await run_in_threadpool(pages[0].read_text, encoding="utf-8")
+    text = _HEAD.sub('<head><base href="figures/">', text, count=1)
+    return Response(text, media_type="text/html")
 
 
 @router.get(

@@ -10,11 +10,11 @@ from fastapi import APIRouter, Depends, Request
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import Response
 
-from api._auth import read_access, require_token
+from api._auth import Access, read_access, require_token
 from api._deps import service_of
 from api._errors import ApiError
 from api._gate import DecodeGate
-from api._models import Health, StationModel, rendered
+from api._models import AccessModel, Health, StationModel, rendered
 from api._openapi import binary, problems
 from api._overlay import measurement_headers
 from station import __version__
@@ -31,6 +31,15 @@ MAX_UPLOAD_BYTES = DEFAULT_MAX_BYTES
 @router.get("/health", response_model=Health, summary="liveness (no token)")
 async def health() -> Health:
     return Health(version=__version__)
+
+
+@router.get("/access", response_model=AccessModel, summary="what this client may do (no token needed)")
+async def access(request: Request) -> AccessModel:
+    """Whether the request carries the station's token (header or the login cookie) and whether reads are
+    open without it: the page says it is read-only, or that it needs the login URL, before anything fails."""
+    granted: Access = request.app.state.access
+    token, _ = granted.presented(request)
+    return AccessModel(authenticated=granted.matches(token), open_reads=granted.public_read)
 
 
 @router.get(
@@ -55,7 +64,8 @@ async def snapshot(request: Request, overlay: bool = False) -> Response:
     the camera: its latest capture is at ``/api/v1/sessions/{id}/latest.png`` then. A frame the
     measurement refuses (no crossing in view) is still a 200 frame: with ``overlay`` the refusal is
     written under it and sent beside it (``X-Measurement-Ok: false``, ``X-Measurement-Code``,
-    ``X-Measurement-Error``)."""
+    ``X-Measurement-Error``); ``X-Measurement`` carries its numbers as JSON (``ok``, ``center_px``,
+    ``center_mm``, ``code``, ``error``)."""
     picture = await run_in_threadpool(service_of(request).snapshot_png, overlay=overlay)
     headers = {"Cache-Control": "no-store", **measurement_headers(picture.measurement)}
     return Response(picture.png, media_type="image/png", headers=headers)

@@ -20,6 +20,7 @@ events the worker reported (the record is read only for what the buffer does not
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import io
 import logging
@@ -33,7 +34,9 @@ from pathlib import Path
 from typing import Any
 
 from api._overlay import Picture, overlay_png
-from station.arm_route import ArmStatus, ToReferenceResult
+from api._progress import RecordedProgress
+from api._robot import RobotMirror
+from station.arm_route import ArmPose, ArmStatus, RoutePreview, RouteRejectedError, ToReferenceResult
 from station.batch import FileResult
 from station.config import ConfigurationError, StationConfig, load_config
 from station.imageio import ImageFileError, ImageLimits, decode_image
@@ -55,6 +58,7 @@ from station.runner import ACTIVE_STATES, FINAL_STATES, Progress, RunnerState, r
 from station.session import open_record, session_measure_params
 from station.vision import MeasurementError, MeasureParams, measure
 from station.worker import (
+    NO_REFERENCE,
     WORKER_NICE,
     ConflictError,
     NotAvailableError,
@@ -109,6 +113,7 @@ class StationService:
         self.config: StationConfig | None = load_config(settings.config) if settings.config else None
         self.record: Record = open_record(settings.data, settings.database, self.config)
         self._lock = threading.RLock()
+        self._report_lock = threading.Lock()
         self._listeners: list[Callable[[EventRow], None]] = []
         self._closed = False
         # the read caches (see the module's docstring): ``_generation`` counts the runner's state changes,
@@ -139,6 +144,10 @@ class StationService:
             self.record.close()
             raise
         self._identities: dict[str, Any] = dict(self.worker.info.identities)
+        self._recorded = RecordedProgress(self.record)
+        self.robot_state = RobotMirror(lambda: self.worker.call("robot_state", timeout_s=60))
+        """The robot's state and pose (read by the worker between sessions, see ``api/_robot.py``)."""
+        self.robot_state.refresh()
 
     @property
     def record_is_local(self) -> bool:
@@ -211,6 +220,8 @@ class StationService:
             self._identities = dict(event.data.get("devices", {}))
         elif event.type == "state":
             self._generation += 1
+            if event.data.get("state") in FINAL_STATES:
+                self.robot_state.refresh()  # a thread of its own: this reader thread delivers the answer
         recent = self._recent
         if recent and recent[-1].session_id != event.session_id:
             recent.clear()
@@ -271,7 +282,12 @@ class StationService:
         """Configuration (secrets redacted), each device's identity and state; never touches a device.
         At most a second old (the station lock's holder, read from its file)."""
         runner = self.running
-        key = (runner.session_id if runner else None, runner.state if runner else None, id(self._identities))
+        key = (
+            runner.session_id if runner else None,
+            runner.state if runner else None,
+            id(self._identities),
+            self.robot_state.generation,
+        )
         cached = self._station_cache
         now = time.monotonic()
         if cached is not None and cached[0] == key and now - cached[1] < CACHE_MAX_AGE_S:
@@ -283,10 +299,18 @@ class StationService:
     def _station(self, runner: RunnerStatus | None) -> dict[str, Any]:
         info = self.worker.info
         busy = runner is not None
+        robot = self.robot_state.doc(busy=busy) if "robot" in info.devices else None
         devices: dict[str, Any] = {
             name: {"identity": self._identities.get(name, {}), "state": "in_session" if busy else "idle"}
             for name in info.devices
         }
+        if robot is not None:
+            # its identity as the latest read gave it (the worker reads it at start: never "?" until the
+            # first session), its state as that read found it
+            devices["robot"] = {
+                "identity": {**devices["robot"]["identity"], **(self.robot_state.identity() or {})},
+                "state": robot["state"],
+            }
         holder = lock_holder(self.record.data_dir)
         return {
             "name": info.name or "offline",
@@ -302,6 +326,7 @@ class StationService:
             "lock": holder,
             "plans": list(PLAN_NAMES),
             "worker": {"alive": self.worker.alive, "pid": self.worker.pid, "nice": info.nice},
+            "robot": robot,
         }
 
     # ------------------------------------------------------------------ measurement
@@ -347,31 +372,52 @@ class StationService:
             return {"ok": False, "error": exc.message, "code": exc.code}
 
     def latest_capture_png(self, session_id: str, *, overlay: bool = True) -> Picture:
-        """The session's latest stored capture with its measurement drawn (the live view in a session)."""
+        """The session's latest stored capture with its measurement drawn (the live view in a session);
+        two rows read, however many the session holds."""
         row = self.record.get_session(session_id)
-        captures = self.record.captures(row.id)
-        if not captures:
+        cap = self.record.latest_capture(row.id)  # the newest stored: a resume's prelude is not last
+        if cap is None:
             raise ConflictError(f"session {row.id} has no capture yet")
-        cap = captures[-1]
         image = self.record.load_image(cap)
         result = None
         if overlay:
-            found = [m for m in self.record.measurements(row.id) if m.capture_id == cap.id]
-            result = found[-1].result if found else None
+            found = self.record.latest_measurement(row.id, cap.id)
+            result = found.result if found is not None else None
         return Picture(overlay_png(image, result), result)
 
     # ------------------------------------------------------------------ the arm outside sessions
 
     def robot(self) -> ArmStatus:
-        """Where the arm is against its reference pose, and the route there (read in the worker; nothing
-        moves); ConflictError while a session owns the arm."""
-        return ArmStatus.model_validate(self.worker.call("robot", timeout_s=60))
+        """Where the arm is against its reference pose, and the route there: a read now (in the worker;
+        nothing moves) that ``/station``'s ``robot`` shows too; ConflictError while a session owns the arm,
+        NotAvailableError without a robot with a reference pose."""
+        doc = self.robot_state.read()
+        if doc is None or doc.get("route") is None:
+            raise NotAvailableError(NO_REFERENCE)
+        return ArmStatus(
+            position=ArmPose.model_validate(doc),
+            reference_joints_deg=doc["reference_joints_deg"],
+            at_reference=doc["at_reference"],
+            route=RoutePreview.model_validate(doc["route"]),
+        )
 
     def to_reference(self) -> ToReferenceResult:
         """Take the arm to its reference pose along its route (in the worker, which owns the devices);
         ConflictError while a session runs, RouteRejectedError (nothing moved) when a move fails the
         driver's checks."""
-        return ToReferenceResult.model_validate(self.worker.call("to_reference", timeout_s=TO_REFERENCE_S))
+        try:
+            done = ToReferenceResult.model_validate(
+                self.worker.call("to_reference", timeout_s=TO_REFERENCE_S)
+            )
+        except (ConflictError, RouteRejectedError):
+            raise  # the arm did not move
+        except Exception:
+            self.robot_state.refresh()  # where a failure on the way left it
+            raise
+        # read before answering, so that ``/station`` shows the arm at its reference pose with the reply
+        with contextlib.suppress(Exception):  # the read's failure is the robot's state in ``/station``
+            self.robot_state.read()
+        return done
 
     # ------------------------------------------------------------------ sessions
 
@@ -461,13 +507,12 @@ class StationService:
             elif status.error is not None and row.state in ACTIVE_STATES:
                 # it failed where its runner could not record it (the record gone): the worker says so
                 row = dataclasses.replace(row, state=str(state), error=status.error)
+            if status.progress.total == 0 and status.state not in FINAL_STATES:
+                # a run that has not counted its steps yet (a resumed one, before pre-flight): what the
+                # record holds, so that its count goes on from where it stopped
+                return SessionView(row, self._recorded.of(row))
             return SessionView(row, status.progress)
-        done = (
-            len([s for s in self.record.steps(row.id) if s.state == "done"])
-            if row.state in ACTIVE_STATES
-            else 0
-        )
-        return SessionView(row, Progress(done, 0, None))
+        return SessionView(row, self._recorded.of(row))
 
     def act(self, session_id: str, action: str) -> SessionView:
         """pause, resume (also continues an interrupted, stopped, failed or aborted session), stop, abort."""
@@ -532,9 +577,13 @@ class StationService:
             raise ConflictError(f"session {row.id} is {row.state}: its report is written once it has ended")
         folder = self.record.data_dir / "reports" / row.id
         stamp = folder / ".written"
-        if not stamp.exists() or stamp.read_text() != row.updated_at.isoformat():
-            write_report(report_document(row), folder)
-            stamp.write_text(row.updated_at.isoformat())
+        # one writer at a time in this process, so that a report is written once: the second of two
+        # pages asking at once finds it written (each file's temporary name is unique, so writers in
+        # other processes, such as ``station report``, cannot collide with this one either)
+        with self._report_lock:
+            if not stamp.exists() or stamp.read_text() != row.updated_at.isoformat():
+                write_report(report_document(row), folder)
+                stamp.write_text(row.updated_at.isoformat())
         return folder
 
     def export_zip(self, session_id: str) -> tuple[str, bytes]:

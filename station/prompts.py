@@ -21,13 +21,14 @@ Clock and id generator are injected, so tests are deterministic.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import threading
 import time
 import uuid
 from collections import deque
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
 
@@ -191,6 +192,20 @@ class PromptBroker:
         self._revision = 0
         self._pending: deque[PromptEvent] = deque()
         self._dispatching = False
+        self._context = threading.local()
+
+    @contextlib.contextmanager
+    def context(self, **details: str | float) -> Iterator[None]:
+        """Add ``details`` to every prompt this thread asks inside the block (the asker's own details win).
+
+        Who asks (a device) does not know why: the session runner says which step of how many it is in
+        (``position``, ``positions``) and what the move is for (``move``: ``overshoot`` or ``position``)."""
+        outer: dict[str, str | float] = getattr(self._context, "details", {})
+        self._context.details = {**outer, **details}
+        try:
+            yield
+        finally:
+            self._context.details = outer
 
     # ------------------------------------------------------------------ asking
 
@@ -224,7 +239,7 @@ class PromptBroker:
                 fields=tuple(fields),
                 source=source,
                 created_s=self._clock(),
-                details=dict(details or {}),
+                details={**getattr(self._context, "details", {}), **(details or {})},
             )
             record = _Record(prompt, validate)
             self._open = record

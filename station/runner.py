@@ -582,6 +582,7 @@ class SessionRunner:
 
     def _steps(self, ctx: PlanContext) -> tuple[list[Step], list[Step]]:
         steps = list(self.plan.steps(self.params, ctx))
+        planned = len(steps)
         prelude: list[Step] = []
         assert ctx.session_id is not None
         if self._resume is not None:
@@ -600,8 +601,10 @@ class SessionRunner:
             )
             steps = remaining
         with self._lock:
-            self._total = len(steps) + len(prelude)
-            self._done = 0
+            # progress counts the plan's steps over the whole session: a resumed run continues the count
+            # (a resume prelude re-establishes the set-up; its steps are not the plan's)
+            self._total = planned
+            self._done = planned - len(steps)
         return steps, prelude
 
     def _redo(self, ctx: PlanContext, steps: list[Step], remaining: list[Step], done: set[int]) -> list[Step]:
@@ -683,8 +686,7 @@ class SessionRunner:
         how = "through the lift pose" if route.via_lift else "direct"
         meta = {"role": "route", "via_lift": route.via_lift, "start_deg": list(start)}
         step = Step(index, f"to the reference pose ({how})", tuple(MoveJoints(q) for q in route.moves), meta)
-        with self._lock:
-            self._total += 1
+        # not one of the plan's steps: progress counts those (as it does not count a resume's prelude)
         return [step], []
 
     def _preflight(self, steps: Sequence[Step], problems: Sequence[str] = ()) -> None:
@@ -747,7 +749,11 @@ class SessionRunner:
                             problems.append(f"{step.name}: {exc}")
         if len(problems) > 20:
             problems = [*problems[:20], f"... and {len(problems) - 20} more"]
-        self._event("preflight", {"problems": problems, "steps": len(steps)})
+        with self._lock:
+            planned = self._total
+        # ``steps``: every step checked (the route and a resume's prelude included); ``plan_steps``: the
+        # plan's over the whole session, which progress counts
+        self._event("preflight", {"problems": problems, "steps": len(steps), "plan_steps": planned})
         if problems:
             raise PreflightError(problems)
 
@@ -841,7 +847,8 @@ class SessionRunner:
             return
         self.record.finish_step(sid, step.index, data=data)
         with self._lock:
-            self._done += 1
+            if step.index < PRELUDE_BASE:
+                self._done += 1
             self._t_steps.append(time.monotonic() - t0)
         self._event(
             "step_finished", {"index": step.index, "name": step.name, "progress": self.progress().to_json()}
@@ -899,7 +906,18 @@ class SessionRunner:
         elif isinstance(action, MoveTable):
             table = require(devices.table, "table")
             timeout = getattr(self.params, "prompt_timeout_s", None)
-            pos = table.move_to(action.x_mm, action.y_mm, timeout_s=timeout)
+            # the operator's prompt says which position of how many, whether this is the overshoot, and
+            # whether it is a resume's check of the last confirmed position
+            at = step.meta.get("position")  # a resume's check repeats an earlier position
+            details: dict[str, str | float] = {
+                "position": (at if isinstance(at, int) else step.index) + 1,
+                "positions": self._total,
+                "move": "overshoot" if action.overshoot else "position",
+            }
+            if step.meta.get("role") == "resume_check":
+                details["purpose"] = "resume_check"
+            with devices.broker.context(**details):
+                pos = table.move_to(action.x_mm, action.y_mm, timeout_s=timeout)
             return {} if action.overshoot else {"table_confirmed_mm": [pos.x_mm, pos.y_mm]}
         elif isinstance(action, Settle):
             with self._lock:
@@ -1174,21 +1192,9 @@ def camera_height_function(devices: StationDevices | None) -> Callable[[Sequence
     settings (``table_z_mm``, ``camera_offset_mm``) and the nominal kinematics; ``None`` when unknown."""
     if devices is None or devices.config.robot is None:
         return None
-    safety = devices.config.robot.safety
-    if "table_z_mm" not in safety or "camera_offset_mm" not in safety:
-        return None
-    import numpy as np
+    from station.plans._recorded import camera_height_function as from_safety
 
-    from station.kinematics import Kinematics
-
-    kin = Kinematics()
-    offset = np.array([*safety["camera_offset_mm"], 1.0], dtype=np.float64)
-    z0 = float(safety["table_z_mm"])
-
-    def height(joints: Sequence[float]) -> float:
-        return float((kin.forward(joints) @ offset)[2]) - z0
-
-    return height
+    return from_safety(devices.config.robot.safety)
 
 
 def calibration_cell(devices: StationDevices | None, measure_params: MeasureParams) -> Any:

@@ -20,7 +20,7 @@ from typing import Any
 from station.compute import MeasureBackend
 from station.imagesets import ImageSet
 from station.validation import ValidationError, ValidationResult, validate
-from station.vision import MeasureParams
+from station.vision import MeasureParams, field_name
 
 #: Table 1 of the seed: (FILTER, SKIP, TESTWIDTH, TESTHEIGHT) per trial, and its MaxE / MeanE (mm).
 SEED_TABLE_1: tuple[tuple[int, str, int, int, int, float, float], ...] = (
@@ -55,16 +55,12 @@ def grid(values: Mapping[str, Sequence[Any]]) -> list[dict[str, Any]]:
 
 def parse_grid(specs: Sequence[str]) -> dict[str, list[str]]:
     """``NAME=V1,V2,...`` strings -> {field name: [values]}, names case-insensitive (ValueError if bad)."""
-    fields = {name.lower(): name for name in MeasureParams.model_fields}
     out: dict[str, list[str]] = {}
     for spec in specs:
         name, sep, values = spec.partition("=")
-        key = name.strip().lower()
         if not sep or not values.strip():
             raise ValueError(f"--grid {spec!r}: expected NAME=V1,V2,... e.g. --grid SKIP=1,10,20")
-        if key not in fields:
-            raise ValueError(f"--grid {name!r}: unknown parameter; known: {', '.join(sorted(fields))}")
-        out[fields[key]] = [v.strip() for v in values.split(",") if v.strip()]
+        out[field_name(name, option="--grid")] = [v.strip() for v in values.split(",") if v.strip()]
     return out
 
 

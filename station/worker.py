@@ -134,6 +134,11 @@ class RunnerStatus:
 
 
 DEVICE_NAMES = ("robot", "camera", "table", "distance_sensor")
+NO_REFERENCE = (
+    "this station has no robot with a reference pose (configure [robot] with reference_joints_deg, or start"
+    " the service with --sim)"
+)
+"""Why the arm's reference-pose route is not available."""
 
 
 # --------------------------------------------------------------------------- exceptions over the pipe
@@ -479,8 +484,16 @@ class SessionHost:
     def rpc_cancel(self, prompt_id: str, reason: str, by: str) -> PromptAnswer:
         return self._broker().cancel(prompt_id, reason=reason, by=by)
 
+    def _settle(self) -> None:
+        """Wait for an ended session's thread to finish: it publishes its final state before it lets go
+        of the station lock, and a read of a device right then would find the station busy."""
+        thread, runner = self._thread, self._runner
+        if thread is not None and runner is not None and runner.state in FINAL_STATES:
+            thread.join(30)
+
     def rpc_grab(self) -> Any:
         """One frame from the camera (ConflictError while a session owns it)."""
+        self._settle()
         with self._lock:
             if self._active() is not None:
                 raise ConflictError(
@@ -501,8 +514,8 @@ class SessionHost:
     # ------------------------------------------------------------------ the arm outside sessions
 
     def _idle_robot(self, what: str) -> Any:
-        """The robot, when no session runs, the arm is not already moving and no other process holds the
-        station (ConflictError, NotAvailableError, SessionLockError otherwise); call with the lock held."""
+        """The robot (None without one) when no session runs, the arm is not already moving and no other
+        process holds the station (ConflictError, SessionLockError otherwise); call with the lock held."""
         runner = self._runner
         if self._closed:
             raise ConflictError("the service is shutting down")
@@ -514,30 +527,54 @@ class SessionHost:
         if self._moving:
             raise ConflictError(f"the arm is on its way to its reference pose: {what} once it has arrived")
         robot = self.devices.robot if self.devices is not None else None
-        if robot is None or self.devices.reference_joints_deg is None:
-            raise NotAvailableError(
-                "this station has no robot with a reference pose (configure [robot] with"
-                " reference_joints_deg, or start the service with --sim)"
-            )
+        if robot is None:
+            return None
         holder = lock_holder(self.record.data_dir)
         if holder is not None:
             raise SessionLockError(str(self.record.data_dir / "station.lock"), holder)
         return robot
 
-    def rpc_robot(self) -> dict[str, Any]:
-        """Where the arm is, its reference pose, and the route ``to-reference`` would take from here, with
-        every problem the driver's checks find in it (nothing moves)."""
-        from station.arm_route import robot_status
+    def rpc_robot_state(self) -> dict[str, Any] | None:
+        """The arm read now, in one connection (connect, read, close: nothing moves): ``identity``,
+        ``power``, ``homed``, ``joints_deg``, ``commanded_joints_deg``, ``world_mm_deg`` and, when the
+        station has a reference pose, ``reference_joints_deg``, ``at_reference`` and the ``route``
+        ``to-reference`` would take from here with every problem the driver's checks find in it
+        (``station.arm_route.robot_status``; else those three are None). None without a robot.
+        ConflictError while a session owns the arm or it is on its way; SessionLockError while another
+        process holds the station."""
+        from dataclasses import asdict
 
+        from station.arm_route import ArmPose, robot_status
+
+        self._settle()
         with self._lock:
             robot = self._idle_robot("read it")
+            if robot is None:
+                return None
+            reference = self.devices.reference_joints_deg
             robot.connect()
             try:
-                return robot_status(robot, self.devices.reference_joints_deg, self._max_step()).model_dump(
-                    mode="json"
-                )
+                status, identity = robot.status(), robot.identity()
+                if reference is not None:
+                    arm = robot_status(robot, reference, self._max_step())
+                    position = arm.position
+                    against: dict[str, Any] = {
+                        "reference_joints_deg": arm.reference_joints_deg,
+                        "at_reference": arm.at_reference,
+                        "route": arm.route.model_dump(mode="json"),
+                    }
+                else:
+                    position = ArmPose.of(robot.where())
+                    against = {"reference_joints_deg": None, "at_reference": None, "route": None}
             finally:
                 robot.close()
+        return {
+            "identity": asdict(identity),
+            "power": status.power,
+            "homed": status.homed,
+            **position.model_dump(mode="json"),
+            **against,
+        }
 
     def rpc_to_reference(self) -> dict[str, Any]:
         """Take the arm to the station's reference pose along its route (``station.arm_route``), every move
@@ -546,6 +583,8 @@ class SessionHost:
 
         with self._lock:
             robot = self._idle_robot("move it")
+            if robot is None or self.devices.reference_joints_deg is None:
+                raise NotAvailableError(NO_REFERENCE)
             self._moving = True
         try:
             with station_lock(self.record.data_dir, "to-reference"):

@@ -353,3 +353,28 @@ def test_a_poller_sees_a_prompt_only_after_every_listener_has_seen_it_open() -> 
     assert seen_early == [None]
     assert broker.current() == handle.prompt
     assert broker.current(pending=True) == handle.prompt
+
+
+def test_a_context_adds_details_to_the_prompts_asked_inside_it_in_its_thread(broker: PromptBroker) -> None:
+    """The runner says which position of how many a table move is for; the table asks."""
+    other: list[Mapping[str, str | float]] = []
+    with broker.context(position=7, positions=40, move="overshoot"):
+        handle = broker.ask("set X", details={"x_mm": 0.254, "move": "own"})
+        assert handle.prompt.details == {"position": 7, "positions": 40, "move": "own", "x_mm": 0.254}
+        broker.confirm(handle.id)
+
+        def elsewhere() -> None:  # another thread asking meanwhile is not in this context
+            h = broker.ask("other")
+            other.append(h.prompt.details)
+            broker.confirm(h.id)
+
+        t = threading.Thread(target=elsewhere)
+        t.start()
+        t.join(10)
+        with broker.context(position=8):
+            inner = broker.ask("set Y")
+            assert inner.prompt.details == {"position": 8, "positions": 40, "move": "overshoot"}
+            broker.confirm(inner.id)
+    assert other == [{}]
+    after = broker.ask("after")
+    assert after.prompt.details == {}

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import base64
 import re
+import threading
 import xml.etree.ElementTree as ET
 from html.parser import HTMLParser
 from pathlib import Path
@@ -390,3 +391,44 @@ def test_repeatability_with_z_adds_the_3d_columns() -> None:
     # without z the table is as before
     plain = text_tables(session("repeatability", "s-plain"))["repeatability"]
     assert "RP3D" not in plain
+
+
+def test_concurrent_writes_of_one_report_file_never_collide(tmp_path: Path) -> None:
+    """Writers of the same report at once (threads here; the service and ``station report`` in two
+    processes alike) each write a temporary file of their own: none fails, a reader only ever sees a
+    whole file, and no temporary file is left. With one fixed temporary name, a writer renamed another's
+    half-written file away and the other failed ("No such file or directory")."""
+    from station.reporting._write import _write_atomic
+
+    target = tmp_path / "report.html"
+    payloads = [bytes([65 + k]) * 300_000 for k in range(4)]
+    errors: list[str] = []
+    seen: list[bytes] = []
+    writing = threading.Event()
+
+    def writer(k: int) -> None:
+        for _ in range(50):
+            try:
+                _write_atomic(target, payloads[k])
+            except ReportError as exc:
+                errors.append(str(exc))
+            writing.set()
+
+    def reader() -> None:
+        writing.wait(30)
+        while True:  # at least once, then as long as any writer writes
+            seen.append(target.read_bytes())
+            if not any(t.is_alive() for t in writers):
+                return
+
+    writers = [threading.Thread(target=writer, args=(k,)) for k in range(4)]
+    watcher = threading.Thread(target=reader)
+    for t in [*writers, watcher]:
+        t.start()
+    for t in [*writers, watcher]:
+        t.join(60)
+    assert errors == []
+    assert seen
+    assert all(s in payloads for s in seen)  # never half a file
+    assert target.read_bytes() in payloads
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["report.html"]  # no temporary file left

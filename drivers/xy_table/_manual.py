@@ -210,7 +210,12 @@ class ManualXYTable:
         if self._position is None:
             return "no position was confirmed before"
         x, y = self._position.x_mm, self._position.y_mm
-        return f"the last confirmed position is X {x:.4f} mm, Y {y:.4f} mm"
+        x_in, y_in = self.readings_for(x, y)
+        # in the micrometers' unit, as the operator reads them; the table position in mm in brackets
+        return (
+            f"the last confirmed position is X {format_in(x_in)}, Y {format_in(y_in)} "
+            f"(X {x:.4f} mm, Y {y:.4f} mm)"
+        )
 
     def _check_travel(self, readings: Mapping[str, float], *, what: str) -> None:
         for name, value in readings.items():

@@ -245,6 +245,11 @@ class Plan(Protocol):
     def reference_pose(self, params: Any, ctx: PlanContext) -> ReferencePose | None:
         """Where its sessions start (None: anywhere, the plan does not need the arm)."""
 
+    # Optional (looked up with getattr): ``resume_from`` (what a resume reruns), ``check_progress`` (live
+    # gates), and ``analysis_context(config, ctx)``: the context its analysis needs beyond the reference
+    # pose and the camera's height, rebuilt from the configuration a stored session recorded (a
+    # re-analysis, ``reanalyse``, runs without the session's station).
+
 
 def get_plan(name: str) -> Plan:
     """The plan called ``name``; PlanError listing the plans otherwise."""

@@ -26,6 +26,7 @@ session (``station calibrate SESSION``).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
@@ -236,6 +237,11 @@ class CalibrationPlan:
     name = "calibration"
     Params = CalibrationParams
     needs = frozenset({"robot", "camera", "distance_sensor"})
+
+    def analysis_context(self, config: Mapping[str, Any], ctx: PlanContext) -> PlanContext:
+        """The cell of the configuration a stored session recorded (a re-analysis): its artifacts,
+        optics and sensor mount, as the session analysed them."""
+        return dataclasses.replace(ctx, calibration=calibration_cell_from_config(config, ctx.measure_params))
 
     # ---------------------------------------------------------------- configurations
 

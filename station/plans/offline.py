@@ -16,14 +16,15 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from station.compute import LocalBackend
 from station.imagesets import ImageSet
 from station.plans import CaptureResult, Compute, PlanContext, PlanError, ReferencePose, Step
+from station.plans._recorded import camera_height_of, reference_of
 from station.sweep import grid, run_sweep, seed_trials
 from station.validation import CALIBRATIONS
-from station.vision import MeasureParams
+from station.vision import MeasureParams, field_name
 
 CHUNK = 64  # captures per reanalysis step: the runner's pause/stop granularity
 
@@ -47,8 +48,28 @@ class SweepParams(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     session: str = Field(min_length=4, description="id (or unique prefix) of a stored validation session")
-    grid: dict[str, list[Any]] | None = Field(None, description="parameter grid; default: the seed's Table 1")
+    grid: dict[str, list[Any]] | None = Field(
+        None,
+        description="parameter grid (names case-insensitive, as --set's); default: the seed's Table 1",
+    )
     calibration: Literal["image", "series"] = Field("image", description="as station sweep's --calibration")
+
+    @field_validator("grid")
+    @classmethod
+    def _grid_names(cls, v: dict[str, list[Any]] | None) -> dict[str, list[Any]] | None:
+        """The measurement parameters' own names (``TESTWIDTH`` -> ``testwidth``), each at most once and
+        with at least one value: an unknown name is refused here, not when the trials run."""
+        if v is None:
+            return None
+        out: dict[str, list[Any]] = {}
+        for name, values in v.items():
+            key = field_name(name, option="grid")
+            if key in out:
+                raise ValueError(f"grid {name!r}: {key} is already in the grid (names are case-insensitive)")
+            if not values:
+                raise ValueError(f"grid {name!r}: no values; give at least one, e.g. {{{key!r}: [3, 5]}}")
+            out[key] = values
+        return out
 
 
 class SweepPlan:
@@ -186,14 +207,22 @@ class ReanalysePlan:
         source = record.get_session(params.session)
         plan = get_plan(source.kind)
         source_params = parse_params(plan, source.params.get("plan", {}))
+        # the source session's station as it recorded it (its reference pose, the camera's height that
+        # chose each excursion's sign, a calibration's cell), never the station of today: a re-analysis
+        # moves nothing and computes what the session computed
         sub = PlanContext(
             measure_params=ctx.measure_params,
-            reference_joints_deg=ctx.reference_joints_deg,
-            camera_height_mm=None,
+            reference_joints_deg=reference_of(source.config),
+            camera_height_mm=camera_height_of(source.config),
             record=record,
             session_id=source.id,
             jobs=ctx.jobs,
+            compute=ctx.compute,
+            cancelled=ctx.cancelled,
         )
+        recorded = getattr(plan, "analysis_context", None)
+        if recorded is not None:
+            sub = recorded(source.config, sub)
         inner = plan.analyse(source_params, sub, captures)
         out: dict[str, Any] = {"source_session": source.id, "kind": source.kind, source.kind: inner}
         if "checks" in inner:

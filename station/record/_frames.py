@@ -118,6 +118,19 @@ class FramesMixin:
         with self._read() as conn:
             return [capture_row(r) for r in conn.execute(query)]
 
+    def latest_capture(self, session_id: str) -> CaptureRow | None:
+        """The session's most recently stored capture (None before its first): one row, whatever the
+        session holds (the live view asks for it with every measurement)."""
+        query = (
+            sa.select(captures)
+            .where(captures.c.session_id == session_id)
+            .order_by(captures.c.id.desc())
+            .limit(1)
+        )
+        with self._read() as conn:
+            r = conn.execute(query).first()
+        return None if r is None else capture_row(r)
+
     def capture(self, capture_id: int) -> CaptureRow:
         """One capture by id."""
         with self._read() as conn:
@@ -163,6 +176,18 @@ class FramesMixin:
             }
             mid = new_id(conn.execute(measurements.insert().values(**values)))
         return MeasurementRow(id=mid, **values)
+
+    def latest_measurement(self, session_id: str, capture_id: int) -> MeasurementRow | None:
+        """The session's most recent measurement of one capture (None before it is measured)."""
+        query = (
+            sa.select(measurements)
+            .where(measurements.c.capture_id == capture_id, measurements.c.session_id == session_id)
+            .order_by(measurements.c.id.desc())
+            .limit(1)
+        )
+        with self._read() as conn:
+            r = conn.execute(query).first()
+        return None if r is None else measurement_row(r)
 
     def measurements(self, session_id: str) -> list[MeasurementRow]:
         """The session's measurements in the order they were stored."""

@@ -177,6 +177,9 @@ def _panel_limit(tests: Mapping[str, RepeatabilityTest]) -> float:
 
 #: Panel grid geometry (inches): panel side, margins for tick labels, titles, suptitle and legend.
 _PANEL, _GAP_W, _GAP_H, _LEFT, _RIGHT, _BOTTOM, _TOP = 2.7, 0.35, 0.75, 0.75, 0.2, 0.95, 1.05
+#: The narrowest figure (inches): the suptitle and the three-column legend fit across it, so that a
+#: figure of one or two panels (``joints=[1]``) cuts neither off; the panels are centred in it.
+_MIN_WIDTH = 6.0
 
 
 def repeatability_figure(tests: Mapping[str, RepeatabilityTest], *, name: str, what: str) -> NamedFigure:
@@ -189,12 +192,14 @@ def repeatability_figure(tests: Mapping[str, RepeatabilityTest], *, name: str, w
     n = len(names)
     ncols = min(3, n)
     nrows = math.ceil(n / ncols)
-    width = _LEFT + _RIGHT + ncols * _PANEL + (ncols - 1) * _GAP_W
+    grid = _LEFT + _RIGHT + ncols * _PANEL + (ncols - 1) * _GAP_W
+    width = max(grid, _MIN_WIDTH)
+    side = (width - grid) / 2
     height = _BOTTOM + _TOP + nrows * _PANEL + (nrows - 1) * _GAP_H
     fig = _figure(width, height, layout=False)
     fig.subplots_adjust(
-        left=_LEFT / width,
-        right=1 - _RIGHT / width,
+        left=(_LEFT + side) / width,
+        right=1 - (_RIGHT + side) / width,
         bottom=_BOTTOM / height,
         top=1 - _TOP / height,
         wspace=_GAP_W / _PANEL,

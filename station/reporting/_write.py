@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import os
+import uuid
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -52,10 +53,16 @@ def _render(fig: Figure, fmt: str) -> bytes:
 
 
 def _write_atomic(path: Path, data: bytes) -> None:
-    """Write to a temporary name, fsync, rename: a reader never sees half a file."""
-    tmp = path.with_name(f".{path.name}.tmp")
+    """Write to a temporary name, fsync, rename: a reader never sees half a file.
+
+    The temporary name is unique (created exclusively, beside ``path`` so that the rename stays on one
+    file system): writers of the same report at once, in threads or processes (the service and
+    ``station report``), never write into each other's file or rename it from under each other; the
+    last rename wins, with a whole file. Its permissions follow the umask, as a plain ``open`` does.
+    """
+    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex}.tmp")
     try:
-        with open(tmp, "wb") as f:
+        with open(tmp, "xb") as f:
             f.write(data)
             f.flush()
             os.fsync(f.fileno())

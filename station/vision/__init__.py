@@ -32,6 +32,7 @@ from station.vision._params import (
     SEED_GAUSS_SIGMA_PX,
     MeasureParams,
     Mode,
+    field_name,
     parse_assignments,
 )
 from station.vision._result import EdgeFit, Measurement
@@ -82,6 +83,7 @@ __all__ = [
     "check_quality",
     "check_single_cross",
     "directional_responses",
+    "field_name",
     "gauss_kernel_7x7",
     "image_bit_depth",
     "intensity_moment",

@@ -145,21 +145,28 @@ class MeasureParams(BaseModel):
         return type(self).model_validate({**self.model_dump(), **changes})
 
 
+def field_name(name: str, *, option: str = "--set") -> str:
+    """The parameter model's field that ``name`` names, case-insensitively (``TESTWIDTH`` ->
+    ``testwidth``): parameter names are case-insensitive wherever they are given (``--set``, ``--grid``,
+    a sweep's ``grid``). Raises ``ValueError`` naming ``option``, the name and the known names."""
+    fields = {f.lower(): f for f in MeasureParams.model_fields}
+    key = name.strip().lower()
+    if key not in fields:
+        raise ValueError(f"{option} {name!r}: unknown parameter; known: {', '.join(sorted(fields))}")
+    return fields[key]
+
+
 def parse_assignments(assignments: list[str]) -> dict[str, str]:
     """Parse ``NAME=VALUE`` strings into a dict keyed by the model's field names (case-insensitive).
 
     Raises ``ValueError`` naming the bad assignment and the known names.
     """
-    fields = {name.lower(): name for name in MeasureParams.model_fields}
     out: dict[str, str] = {}
     for item in assignments:
         name, sep, value = item.partition("=")
         if not sep or not name.strip():
             raise ValueError(f"--set {item!r}: expected NAME=VALUE, e.g. --set TESTWIDTH=5")
-        key = name.strip().lower()
-        if key not in fields:
-            raise ValueError(f"--set {name!r}: unknown parameter; known: {', '.join(sorted(fields))}")
-        out[fields[key]] = value.strip()
+        out[field_name(name)] = value.strip()
     return out
 
 

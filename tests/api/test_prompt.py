@@ -47,8 +47,10 @@ def test_a_person_answers_every_prompt_and_the_artifact_moves(make_served: Serve
         sid = c.post("/api/v1/sessions", json=VALIDATION).json()["id"]
         seen: set[str] = set()
         answered = 0
+        said: list[tuple[int, int, str]] = []
         while (p := next_prompt(c, seen)) is not None:
             seen.add(p["id"])
+            said.append((int(p["details"]["position"]), int(p["details"]["positions"]), p["details"]["move"]))
             fields = {f["name"]: f for f in p["fields"]}
             assert set(fields) == {"x_in", "y_in"}
             assert fields["x_in"]["unit"] == "in"
@@ -72,6 +74,16 @@ def test_a_person_answers_every_prompt_and_the_artifact_moves(make_served: Serve
         final = wait_final(c, sid)
     assert final["state"] == "succeeded", final["error"]
     assert answered >= len(PATTERN)
+    # each prompt says which position of how many, and whether it is the overshoot before a backwards
+    # move (same-direction approach: before the first position and before the move back in -x)
+    assert said == [
+        (1, 4, "overshoot"),
+        (1, 4, "position"),
+        (2, 4, "position"),
+        (3, 4, "position"),
+        (4, 4, "overshoot"),
+        (4, 4, "position"),
+    ]
     assert served.service.in_worker(readings_followed) == answered
     assert len(final["results"]["positions"]) == len(PATTERN)
     # the measured displacements follow the confirmed moves (um): the artifact really moved

@@ -6,6 +6,7 @@ snapshot of one that cannot be measured is a 200 frame with the measurement's er
 
 from __future__ import annotations
 
+import json
 import time
 
 import cv2
@@ -13,6 +14,7 @@ import httpx
 import numpy as np
 
 from station.arm_route import travel
+from station.runner import PRELUDE_BASE
 from station.worker import SessionHost
 from tests.api.conftest import Served, ServeFactory, wait_final
 
@@ -53,15 +55,27 @@ def jog(host: SessionHost, target: tuple[float, ...]) -> None:
 # ------------------------------------------------------------------ helpers
 
 
-def abort_calibration_over_a_bench_artifact(c: httpx.Client) -> str:
+def abort_calibration_over_a_bench_artifact(served: Served, c: httpx.Client) -> str:
     r = c.post("/api/v1/sessions", json=CALIBRATION)
     assert r.status_code == 201, r.text
     sid = str(r.json()["id"])
-    while c.get(f"/api/v1/sessions/{sid}").json()["progress"]["done"] < 1:  # the first configuration
-        time.sleep(0.05)
+    wait_over_the_first_artifact(served, sid)
     assert c.post(f"/api/v1/sessions/{sid}/actions", json={"action": "abort"}).status_code == 201
     assert wait_final(c, sid)["state"] == "aborted"
     return sid
+
+
+def wait_over_the_first_artifact(served: Served, sid: str) -> None:
+    """Until the session's first configuration has begun (after its route to the reference pose, if any) and
+    the arm is over the first bench artifact (truth): an abort then lands in one of the two configurations
+    there. (Progress counts the
+    plan's steps only, and the second configuration may end before an abort sent after the first.)"""
+    # the first configuration has begun (after the route), and the arm has reached it
+    while not (
+        any(s.index < PRELUDE_BASE for s in served.service.record.steps(sid))
+        and served.service.in_worker(seen_artifact) == 1
+    ):
+        time.sleep(0.02)
 
 
 def step_names(served: Served, sid: str) -> list[str]:
@@ -88,7 +102,7 @@ def test_after_an_aborted_calibration_sessions_start_at_the_reference_and_to_ref
     served = make_served()
     scale_file = served.service.record.data_dir / "scale-calibration.json"
     with served.client() as c:
-        abort_calibration_over_a_bench_artifact(c)
+        abort_calibration_over_a_bench_artifact(served, c)
         assert served.service.in_worker(seen_artifact) == 1  # truth: the camera looks at a bench artifact
 
         # a validation never moves the arm: refused at pre-flight, saying what to do; nothing written
@@ -115,12 +129,11 @@ def test_after_an_aborted_calibration_sessions_start_at_the_reference_and_to_ref
         assert served.service.in_worker(seen_artifact) == 0
 
         # so does a calibration after another abort
-        abort_calibration_over_a_bench_artifact(c)
+        abort_calibration_over_a_bench_artifact(served, c)
         r = c.post("/api/v1/sessions", json=CALIBRATION)
         assert r.status_code == 201, r.text
         cal = r.json()["id"]
-        while c.get(f"/api/v1/sessions/{cal}").json()["progress"]["done"] < 2:  # the route, a configuration
-            time.sleep(0.05)
+        wait_over_the_first_artifact(served, cal)
         assert c.post(f"/api/v1/sessions/{cal}/actions", json={"action": "abort"}).status_code == 201
         assert wait_final(c, cal)["state"] == "aborted"
         assert step_names(served, cal)[:2] == [
@@ -155,6 +168,9 @@ def test_after_an_aborted_calibration_sessions_start_at_the_reference_and_to_ref
         assert results["max_um"] < 3.0
         latest = c.get(f"/api/v1/sessions/{val['id']}/latest.png")
         assert (latest.status_code, latest.headers["x-measurement-ok"]) == (200, "true")
+        numbers = json.loads(latest.headers["x-measurement"])  # the page's numbers under the live view
+        assert numbers["ok"] is True
+        assert len(numbers["center_px"]) == len(numbers["center_mm"]) == 2
         while not scale_file.exists():  # the worker writes it once the session has ended (a hang fails)
             time.sleep(0.02)
 
@@ -186,6 +202,12 @@ def test_a_snapshot_where_the_camera_sees_no_artifact_is_a_frame_with_the_measur
         assert r.headers["x-measurement-ok"] == "false"
         assert r.headers["x-measurement-code"] in {"image_quality", "edges_not_found", "bad_geometry"}
         assert r.headers["x-measurement-error"]
+        numbers = json.loads(r.headers["x-measurement"])  # the same refusal, as the page reads it
+        assert numbers == {
+            "ok": False,
+            "code": r.headers["x-measurement-code"],
+            "error": r.headers["x-measurement-error"],
+        }
         image = cv2.imdecode(np.frombuffer(r.content, np.uint8), cv2.IMREAD_UNCHANGED)
         assert image is not None
         assert image.shape[:2] == (480, 640)
@@ -197,6 +219,17 @@ def test_a_snapshot_where_the_camera_sees_no_artifact_is_a_frame_with_the_measur
         # from the lift pose the route goes straight down to the reference, where the crossing is seen
         arm = c.get("/api/v1/station/robot").json()
         assert arm["route"]["via_lift"] is True
+        # one read of the arm: /station shows what GET /station/robot just read
+        shown = c.get("/api/v1/station").json()["robot"]
+        assert shown["commanded_joints_deg"] == arm["position"]["commanded_joints_deg"] == list(LIFT)
+        assert shown["at_reference"] is False
         assert c.post("/api/v1/station/robot/to-reference").status_code == 200
+        # read before the reply: /station shows the arm back at once
+        back = c.get("/api/v1/station").json()["robot"]
+        assert (back["state"], back["at_reference"], back["commanded_joints_deg"]) == (
+            "idle",
+            True,
+            REFERENCE,
+        )
         seen = c.get("/api/v1/camera/snapshot.png", params={"overlay": True})
         assert seen.headers["x-measurement-ok"] == "true"

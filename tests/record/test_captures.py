@@ -170,3 +170,41 @@ def test_database_full_is_a_record_error_and_keeps_what_was_committed(tmp_path: 
         assert not (rec.data_dir / "images" / s.id / "00000-00.png").exists()
         assert rec.events(s.id) == [kept]
         assert rec.captures(s.id) == []
+
+
+def test_the_latest_capture_and_its_measurement_are_read_alone(record: Record) -> None:
+    """The live view's picture: the newest stored capture (a resume's check, numbered after the plan's
+    steps, is not the latest once the session goes on) and that session's newest measurement of it, each
+    one row asked for, however many the session holds."""
+    s = record.create_session("validation", **SNAPSHOT)
+    assert record.latest_capture(s.id) is None
+    check = record.save_capture(s.id, 1_000_000, 0, _frame(np.uint8), timestamp_s=1.0, meta={})
+    later = [
+        record.save_capture(s.id, k, 0, _frame(np.uint8, k), timestamp_s=2.0 + k, meta={}) for k in (3, 4)
+    ]
+    assert record.latest_measurement(s.id, later[-1].id) is None  # not measured yet
+    params = {"mode": "precise"}
+    first = record.add_measurement(s.id, later[-1].id, {"ok": True, "n": 1}, params=params, software="t")
+    again = record.add_measurement(s.id, later[-1].id, {"ok": True, "n": 2}, params=params, software="t")
+    other = record.create_session("reanalyse", **SNAPSHOT, parent_id=s.id)  # measures s's captures again
+    record.add_measurement(other.id, later[-1].id, {"ok": False, "n": 3}, params=params, software="t")
+
+    statements: list[str] = []
+
+    def seen(_c: object, _cur: object, statement: str, *_: object) -> None:
+        statements.append(statement)
+
+    sa_event.listen(record.engine, "before_cursor_execute", seen)
+    try:
+        assert record.latest_capture(s.id) == later[-1]
+        assert record.latest_measurement(s.id, later[-1].id) == again
+        theirs = record.latest_measurement(other.id, later[-1].id)
+    finally:
+        sa_event.remove(record.engine, "before_cursor_execute", seen)
+    assert theirs is not None
+    assert theirs.result["n"] == 3  # each session's own measurement
+    assert first.id < again.id
+    assert check.id < later[0].id
+    selects = [st for st in statements if st.lstrip().upper().startswith("SELECT")]
+    assert len(selects) == 3
+    assert all("LIMIT" in st.upper() for st in selects)

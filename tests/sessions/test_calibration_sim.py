@@ -125,6 +125,24 @@ def test_station_calibrate_identifies_the_stored_session_again(
     assert "soft_l1" in proc.stderr
 
 
+@pytest.mark.timeout(300)
+def test_a_reanalysis_measures_the_captures_again_and_identifies_as_the_session_did(
+    session: tuple[Path, SessionOutcome],
+) -> None:
+    """``reanalyse`` builds the calibration's cell from the configuration the session recorded (it
+    failed with "a calibration session needs the cell's [calibration] section": it took the station of
+    today, and has none without devices)."""
+    data, outcome = session
+    again = run_session("reanalyse", params={"session": outcome.id}, data=data)
+    assert again.state == "succeeded", again.error
+    inner = again.results["calibration"]
+    # the same images measured with the same parameters, the same hold-out draw: the same figures
+    rel, rel0 = inner["relative_error_um"], outcome.results["relative_error_um"]
+    assert rel == pytest.approx(rel0, rel=1e-6)
+    assert inner["identified_count"] == outcome.results["identified_count"]
+    assert {c["name"] for c in again.results["checks"]} == {c["name"] for c in outcome.results["checks"]}
+
+
 def test_station_calibrate_refuses_what_it_cannot_identify(session: tuple[Path, SessionOutcome]) -> None:
     data, outcome = session
 

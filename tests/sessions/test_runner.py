@@ -300,6 +300,47 @@ def test_resume_skips_completed_tests_and_reruns_the_interrupted_one_from_its_st
     assert "excluded_captures" not in test
 
 
+def test_a_resumed_session_continues_its_progress_count(record: Record, fake: FakeStation) -> None:
+    """Progress counts the plan's steps over the whole session: a resumed run starts from the steps that
+    stay done, never from 0 of what is left (the page showed "0 / 143" after a resume). A repeatability
+    reruns its interrupted test from that test's start, so the count continues from there."""
+    r, _ = runner(record, fake, "repeatability", cycles=3, warmup_cycles=0, joints=[1, 2])
+    r.subscribe(
+        lambda e: r.abort() if e.type == "step_started" and e.data.get("name") == "J2 cycle 2" else None
+    )
+    assert r.run() is RunnerState.ABORTED
+    planned = r.progress().total
+    sid = sid_of(r)
+    j1_steps = sum(1 for s in record.steps(sid) if s.name.startswith("J1 "))
+    assert 0 < r.progress().done < planned
+    plan = get_plan("repeatability")
+    row = record.get_session(sid)
+    resumed = SessionRunner(
+        record,
+        plan,
+        parse_params(plan, row.params["plan"]),
+        devices=FakeStation().devices(),
+        resume_session=row,
+    )
+    log = EventLog()
+    resumed.subscribe(log)
+    assert resumed.run() is RunnerState.SUCCEEDED
+    (event,) = log.of("resumed")
+    kept = event.data["skipped_steps"]  # J1's steps: done, and not run again
+    assert kept == j1_steps > 0
+    counts = [
+        (e.data["progress"]["done"], e.data["progress"]["total"])
+        for e in log.events
+        if e.type == "step_finished"
+    ]
+    # the prelude's step (the reference again) does not count as the plan's; J2 counts on from J1's
+    assert counts[0] == (kept, planned)
+    assert counts[1] == (kept + 1, planned)
+    assert {total for _, total in counts} == {planned}
+    assert counts[-1] == (planned, planned)
+    assert [d for d, _ in counts] == sorted(d for d, _ in counts)
+
+
 def test_plan_parameters_are_validated_with_the_field_named() -> None:
     from station.plans import PlanError
 

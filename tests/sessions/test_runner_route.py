@@ -59,7 +59,10 @@ def test_a_repeatability_after_a_jog_starts_with_the_route_through_the_lift_pose
     assert log.of("preflight")[0].data["problems"] == []
     assert all(c.meta["joints_deg"] == list(REF) for c in record.captures(sid))
     assert results_of(record, r)["tests"]["J2"]["n_cycles"] == 3
-    assert r.progress().done == r.progress().total == 1 + 1 + 3  # the route, the reference, the cycles
+    # progress counts the plan's steps (the reference, the cycles), not the route before them
+    assert r.progress().done == r.progress().total == 1 + 3
+    assert log.of("preflight")[0].data["plan_steps"] == 1 + 3
+    assert log.of("preflight")[0].data["steps"] == 1 + 1 + 3  # every step checked: the route too
 
 
 def test_a_short_way_back_is_one_move_and_at_the_reference_there_is_no_route(

@@ -124,7 +124,10 @@ def test_cancel_raises_and_keeps_the_last_confirmed_position(
     start = first.result(timeout=ANSWER_WAIT_S)
     moving = _move(runner, table, 2.0, 2.0)
     broker.cancel(_asked(broker).id, reason="micrometer jammed")
-    expected = r"move to X 0\.0788 in.*jammed.*last confirmed position is X 1\.0008 mm"
+    # every length in the table's unit (the micrometers' inches), the table position in mm in brackets
+    expected = (
+        r"move to X 0\.0788 in.*jammed.*last confirmed position is X 0\.0394 in, Y 0\.0394 in \(X 1\.0008 mm"
+    )
     with pytest.raises(OperatorCancelledError, match=expected):
         moving.result(timeout=ANSWER_WAIT_S)
     assert table.position() == start

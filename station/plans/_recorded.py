@@ -1,0 +1,59 @@
+"""What a plan's analysis reads of the station's configuration: the arm's reference pose and the camera's
+height above the artifact plane (from the robot's safety settings and the nominal kinematics).
+
+While a session runs, the runner reads them from the station's configuration (``station.runner``). When a
+stored session is measured again (``reanalyse``), its plan reads them from the configuration the session
+recorded (its ``config`` snapshot): a re-analysis computes what the session computed, whatever the station
+is configured with today (or without any station at all), and moves nothing.
+
+Only the kinematics is imported here: every plan, the runner and the re-analysis may use it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+HeightFunction = Callable[[Sequence[float]], float]
+
+
+def robot_section(config: Mapping[str, Any] | None) -> Mapping[str, Any]:
+    """The ``robot`` section of a configuration (a ``StationConfig`` as JSON, or a session's snapshot)."""
+    robot = (config or {}).get("robot")
+    return robot if isinstance(robot, Mapping) else {}
+
+
+def reference_of(config: Mapping[str, Any] | None) -> tuple[float, ...] | None:
+    """The reference pose (deg) a configuration gives its robot, None without one."""
+    ref = robot_section(config).get("reference_joints_deg")
+    return None if ref is None else tuple(float(a) for a in ref)
+
+
+def camera_height_function(safety: Mapping[str, Any] | None) -> HeightFunction | None:
+    """Height (mm) of the camera's front above the artifact plane for given joints, from the robot's
+    safety settings (``table_z_mm``, ``camera_offset_mm``) and the nominal kinematics; None when they do
+    not say."""
+    safety = safety or {}
+    if "table_z_mm" not in safety or "camera_offset_mm" not in safety:
+        return None
+    from station.kinematics import Kinematics
+
+    kin = Kinematics()
+    offset = np.array([*safety["camera_offset_mm"], 1.0], dtype=np.float64)
+    z0 = float(safety["table_z_mm"])
+
+    def height(joints: Sequence[float]) -> float:
+        return float((kin.forward(joints) @ offset)[2]) - z0
+
+    return height
+
+
+def camera_height_of(config: Mapping[str, Any] | None) -> HeightFunction | None:
+    """:func:`camera_height_function` of a configuration's robot."""
+    safety = robot_section(config).get("safety")
+    return camera_height_function(safety if isinstance(safety, Mapping) else None)
+
+
+__all__ = ["HeightFunction", "camera_height_function", "camera_height_of", "reference_of", "robot_section"]

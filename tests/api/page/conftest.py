@@ -1,0 +1,139 @@
+"""The operator page in a real headless Chromium (Debian's, driven by Playwright; never `playwright
+install`), against a real service (uvicorn on 127.0.0.1 over the simulated station).
+
+``Visit`` watches what a page does: console errors, uncaught exceptions, failed requests and every
+response of 400 or more. Waits are on the page's own state (``wait_for_function``), never sleeps.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+import httpx
+import pytest
+
+from tests.api.conftest import AUTH, TOKEN
+from tests.conftest import needs_system
+
+CHROMIUM = "/usr/bin/chromium"
+ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--disable-dev-shm-usage",
+]
+WIDE = {"width": 1280, "height": 720}
+NARROW = {"width": 800, "height": 900}
+FINAL = ("succeeded", "failed", "aborted", "stopped", "interrupted")
+PATTERN = [[0.0, 0.0], [254.0, 0.0], [254.0, 254.0], [0.0, 254.0]]
+
+
+@pytest.fixture
+def browser() -> Iterator[Any]:
+    """Chromium for one test (Playwright's sync API runs one instance at a time per process, and
+    ``tests/api/test_browser.py`` has its own)."""
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        needs_system("playwright (pip)", False, "pip install playwright")
+        raise
+    needs_system("chromium", shutil.which(CHROMIUM) is not None, "apt-get install chromium")
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
+        try:
+            yield b
+        finally:
+            b.close()
+
+
+@dataclass
+class Visit:
+    """A page and what went wrong in its browser context (the page and any it opened: a report)."""
+
+    page: Any
+    console_errors: list[str] = field(default_factory=list)
+    failed: list[str] = field(default_factory=list)
+    requests: list[str] = field(default_factory=list)
+
+    def watch(self) -> Visit:
+        context = self.page.context
+        context.on("console", self._console)
+        context.on("weberror", lambda e: self.console_errors.append(f"uncaught: {e.error}"))
+        context.on("requestfailed", lambda r: self.failed.append(f"{r.method} {r.url}: {r.failure}"))
+        context.on("request", lambda r: self.requests.append(f"{r.method} {r.url}"))
+        context.on("response", self._response)
+        return self
+
+    def _console(self, message: Any) -> None:
+        if message.type == "error":
+            self.console_errors.append(message.text)
+
+    def _response(self, response: Any) -> None:
+        if response.status >= 400:
+            self.failed.append(f"{response.status} {response.url}")
+
+    def state(self) -> str:
+        return str(self.page.get_attribute("#state", "data-state"))
+
+    def wait_state(self, *states: str, timeout_ms: int = 120_000) -> str:
+        self.page.wait_for_function(
+            "states => states.includes(document.querySelector('#state').dataset.state)",
+            arg=list(states),
+            timeout=timeout_ms,
+        )
+        return self.state()
+
+
+def open_page(browser: Any, base: str, *, login: bool = True, viewport: dict[str, int] = WIDE) -> Visit:
+    """A new page (its own cookies) on the service at ``base``; with ``login`` through the printed URL."""
+    context = browser.new_context(viewport=viewport)
+    visit = Visit(context.new_page()).watch()
+    visit.page.set_default_timeout(60_000)
+    if login:
+        visit.page.goto(f"{base}/?token={TOKEN}")
+        assert visit.page.url == f"{base}/"  # the token left the address bar
+    else:
+        visit.page.goto(f"{base}/")
+    visit.page.wait_for_function("document.body.dataset.access !== 'unknown'")
+    return visit
+
+
+def start_from_form(visit: Visit, kind: str, params: dict[str, Any] | None = None) -> str:
+    """Choose ``kind``, give ``params`` as the raw JSON (None: the form as it is), press Start; the new
+    session's id (an AssertionError with the page's message when the service refused it)."""
+    page = visit.page
+    before = page.text_content("#session-id") or ""
+    page.wait_for_function(
+        "kind => [...document.querySelectorAll('#kind option')].some(o => o.value === kind)", arg=kind
+    )
+    page.select_option("#kind", kind)
+    if params is not None:
+        if not page.evaluate("document.querySelector('#raw-json').open"):
+            page.click("#raw-json summary")
+        page.fill("#params", json.dumps(params))
+    page.click("#start")
+    page.wait_for_function(
+        """([kind, before]) => {
+            const id = document.querySelector('#session-id').textContent;
+            const shown = id && id !== before && document.querySelector('#session-kind').textContent === kind;
+            return shown || document.querySelector('#start-error').textContent !== '';
+        }""",
+        arg=[kind, before],
+    )
+    refused = page.text_content("#start-error")
+    assert not refused, refused
+    sid = page.text_content("#session-id")
+    assert sid
+    return sid
+
+
+def api(base: str) -> httpx.Client:
+    return httpx.Client(base_url=base, headers=AUTH, timeout=60)
