@@ -10,6 +10,7 @@ from __future__ import annotations
 import inspect
 import logging
 import math
+import os
 import tomllib
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
@@ -37,6 +38,9 @@ from station.redaction import redact
 log = logging.getLogger(__name__)
 
 DEVICE_GROUP = "station.devices"
+
+ROBOT_LATCH_FILE = "robot-stop-latch.json"
+"""The robot's stop latch in the data directory (``drivers/crs_a465/_latch.py``)."""
 
 
 class ConfigurationError(ValueError):
@@ -323,6 +327,13 @@ class StationConfig(BaseModel):
         safety.camera_offset_mm``): the nominal camera frame of jogs, teaching and calibration."""
         return camera_mount_of(self.model_dump(mode="json"))
 
+    def robot_latch_file(self) -> Path | None:
+        """Where the robot's stop latch is kept across processes: ``robot-stop-latch.json`` in the data
+        directory (``data_dir``, else ``$STATION_DATA``); ``None`` when neither is set (then the latch
+        lives only as long as the driver object)."""
+        base = self.data_dir if self.data_dir is not None else os.environ.get("STATION_DATA")
+        return None if not base else Path(base) / ROBOT_LATCH_FILE
+
     def robot_safety(self) -> dict[str, Any]:
         """The robot driver's safety fields: ``[robot] safety`` with the camera's lens front
         (``camera_offset_mm``) and the carried bodies (the camera's and the distance sensor head's, in the
@@ -452,6 +463,9 @@ def open_station(config: StationConfig, *, broker: PromptBroker | None = None) -
     if config.robot is not None:
         options = dict(config.robot.options)
         options["safety"] = config.robot_safety()
+        latch = config.robot_latch_file()
+        if latch is not None:
+            options.setdefault("latch_file", str(latch))
         robot = build("robot", config.robot.driver, **options)
     table: XYTable | None = None
     if config.table is not None:

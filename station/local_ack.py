@@ -27,14 +27,11 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import IO, Literal
 
-from station.devices import MotionStoppedError
-
 __all__ = [
     "ACKNOWLEDGE_HINT",
     "MAX_AGE_S",
     "LocalAcknowledgement",
     "RemoteAcknowledgementError",
-    "StopLatchedError",
 ]
 
 log = logging.getLogger(__name__)
@@ -56,15 +53,6 @@ class RemoteAcknowledgementError(PermissionError):
     """A stop acknowledgement asked for from somewhere other than the station itself; nothing released."""
 
     code = "remote_acknowledgement"
-
-
-class StopLatchedError(MotionStoppedError):
-    """A stop is latched: motions are refused until a person at the station acknowledges it
-    (``acknowledge_stop`` with a :class:`LocalAcknowledgement`); ``reason`` says what latched it."""
-
-    def __init__(self, message: str, *, reason: str = "") -> None:
-        super().__init__(message)
-        self.reason = reason
 
 
 @dataclass(frozen=True)

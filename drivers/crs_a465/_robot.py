@@ -43,8 +43,9 @@ from station.devices import (
     DeviceProtocolError,
     RobotPosition,
     RobotStatus,
+    StopLatchedError,
 )
-from station.local_ack import ACKNOWLEDGE_HINT, LocalAcknowledgement, StopLatchedError
+from station.local_ack import ACKNOWLEDGE_HINT, LocalAcknowledgement
 from station.speed_cap import SpeedCapError
 
 log = logging.getLogger(__name__)

@@ -39,8 +39,9 @@ from station.devices import (
     DeviceTimeoutError,
     MotionStoppedError,
     RobotPosition,
+    StopLatchedError,
 )
-from station.local_ack import ACKNOWLEDGE_HINT, StopLatchedError
+from station.local_ack import ACKNOWLEDGE_HINT
 
 log = logging.getLogger(__name__)
 

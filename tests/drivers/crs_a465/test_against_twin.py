@@ -25,9 +25,8 @@ from drivers.crs_a465 import (
 )
 from sim.controller import ControllerTwin
 from station import config
-from station.devices import DeviceBusyError, MotionStoppedError, Robot
+from station.devices import DeviceBusyError, MotionStoppedError, Robot, StopLatchedError
 from station.kinematics import Kinematics, world_row
-from station.local_ack import StopLatchedError
 from tests.drivers.crs_a465.conftest import FAST_LINK, TWIN_MOTION
 from tests.drivers.crs_a465.fakes import READY
 from tests.local_ack import local_ack

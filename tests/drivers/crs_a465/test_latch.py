@@ -8,7 +8,8 @@ from pathlib import Path
 import pytest
 
 from drivers.crs_a465 import CrsA465
-from station.local_ack import LocalAcknowledgement, RemoteAcknowledgementError, StopLatchedError
+from station.devices import StopLatchedError
+from station.local_ack import LocalAcknowledgement, RemoteAcknowledgementError
 from tests.drivers.crs_a465.fakes import connect_exchanges, scripted_robot
 from tests.local_ack import local_ack
 
