@@ -204,7 +204,7 @@ def sim_safety(world: World) -> dict[str, Any]:
     }
 
 
-def taught_artifacts_mm(world: World) -> list[tuple[float, float, float]]:
+def taught_artifacts_mm(world: World, *, digits: int | None = 1) -> list[tuple[float, float, float]]:
     """Each artifact's crossing as a person would teach it: the arm jogged until the true camera, square to
     the artifact, sees the crossing centred at the working distance, the position then read through the
     nominal kinematics (what WORLD reports) plus the working distance along the optical axis. Off the
@@ -217,23 +217,30 @@ def taught_artifacts_mm(world: World) -> list[tuple[float, float, float]]:
         camera = transform(square_on(up) @ LOOK_DOWN, T[:3, 3] + wd * np.asarray(up))
         q = world.kinematics.inverse(camera, seed_deg=world.spec.reference_joints_deg)
         taught = nominal.forward(q) @ np.array([0.0, 0.0, wd, 1.0])
-        out.append((round(float(taught[0]), 1), round(float(taught[1]), 1), round(float(taught[2]), 1)))
+        x, y, z = (float(v) if digits is None else round(float(v), digits) for v in taught[:3])
+        out.append((x, y, z))
     return out
 
 
-def taught_normals(world: World) -> list[tuple[float, float, float]]:
+def taught_normals(world: World, *, digits: int | None = 3) -> list[tuple[float, float, float]]:
     """Each artifact's upward normal as measured on the bench (an inclinometer: to 0.001)."""
-    return [tuple(round(-float(v), 3) for v in T[:3, 2]) for T in world.artifact_poses()]  # type: ignore[misc]
+    return [
+        tuple(-float(v) if digits is None else round(-float(v), digits) for v in T[:3, 2])  # type: ignore[misc]
+        for T in world.artifact_poses()
+    ]
 
 
-def taught_turns_deg(world: World) -> list[float]:
+def taught_turns_deg(world: World, *, digits: int | None = 1) -> list[float]:
     """Each artifact's yaw as a person would teach it: the camera turn (about its axis, from square on
     with the image's x along the base's -x, see ``station.plans.calibration``) at which the cross
     appears square."""
     out = []
-    for T, up in zip(world.artifact_poses(), taught_normals(world), strict=True):
+    for T, up in zip(
+        world.artifact_poses(), taught_normals(world, digits=None if digits is None else 3), strict=True
+    ):
         u = (square_on(up) @ LOOK_DOWN).T @ T[:3, 0]
-        out.append(round(math.degrees(math.atan2(float(u[1]), float(u[0]))), 1))
+        turn = math.degrees(math.atan2(float(u[1]), float(u[0])))
+        out.append(turn if digits is None else round(turn, digits))
     return out
 
 

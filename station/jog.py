@@ -37,6 +37,7 @@ __all__ = [
     "JogError",
     "JogResult",
     "camera_jog_target",
+    "camera_offset_target",
     "jog",
     "joint_jog_target",
 ]
@@ -169,6 +170,23 @@ def camera_jog_target(
             f" {change[worst]:.1f} deg: the arm is near a singularity (the wrist straight); jog a joint"
             " instead; nothing was sent"
         )
+    return _quantised(q)
+
+
+def camera_offset_target(
+    start_deg: Sequence[float], nominal: Kinematics, offset_mm: Sequence[float]
+) -> tuple[float, ...]:
+    """The joints that shift the camera by ``offset_mm`` (x, y, z in its own frame; no turn) from
+    ``start_deg``, through the nominal model; no jog-size limit (the robot's checks still apply), the
+    singularity guard of :func:`camera_jog_target`."""
+    start = np.asarray(start_deg, dtype=np.float64)
+    target_pose = nominal.forward(start) @ transform(np.eye(3), [float(v) for v in offset_mm])
+    try:
+        q = nominal.inverse(target_pose, seed_deg=start)
+    except UnreachableError as exc:
+        raise JogError(f"the camera cannot be moved there ({exc}); nothing was sent") from exc
+    if float(np.max(np.abs(q - start))) > 4 * MAX_JOINT_CHANGE_DEG:
+        raise JogError("that camera shift would swing the arm through a singularity; nothing was sent")
     return _quantised(q)
 
 
