@@ -17,7 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from station.camera_model import CameraIntrinsics, read_camera_model
-from station.config import StationDevices
+from station.config import StationConfig, StationDevices
 from station.devices import Camera, DistanceSensor, Robot
 from station.jog import JOG_SPEED_PCT, camera_jog_target, camera_offset_target
 from station.kinematics import Kinematics
@@ -39,6 +39,7 @@ __all__ = [
     "TaughtArtifact",
     "TaughtReference",
     "TeachRig",
+    "camera_intrinsics",
     "rig_for",
     "teach_artifact",
     "teach_reference",
@@ -226,6 +227,23 @@ def teach_sensor_mount(
     return fit, pairs
 
 
+def camera_intrinsics(config: StationConfig, camera: Camera) -> CameraIntrinsics:
+    """The station's camera model: ``[camera] camera_model``, else the nominal pinhole from
+    ``[calibration]`` ``working_distance_mm`` and ``pixel_mm`` with the principal point at the centre of
+    the camera's frame (one frame is grabbed for its size)."""
+    if config.camera.camera_model is not None:
+        return read_camera_model(config.camera.camera_model)
+    if config.calibration is None:
+        raise TeachError(
+            "no camera model: set [camera] camera_model, or [calibration] working_distance_mm and pixel_mm"
+            " (the optics' nominal values)"
+        )
+    height, width = camera.grab().image.shape[:2]
+    f = config.calibration.working_distance_mm / config.calibration.pixel_mm
+    K = np.array([[f, 0.0, (width - 1) / 2.0], [0.0, f, (height - 1) / 2.0], [0.0, 0.0, 1.0]])
+    return CameraIntrinsics(K, np.zeros(5), (width, height))
+
+
 def rig_for(devices: StationDevices, *, speed_pct: float | None = None) -> TeachRig:
     """The rig of a station's devices (connected) and configuration: the nominal model with ``[camera]
     mount``, the camera model (``[camera] camera_model``, else the nominal pinhole from ``[calibration]``
@@ -239,13 +257,7 @@ def rig_for(devices: StationDevices, *, speed_pct: float | None = None) -> Teach
             "teaching needs [calibration] working_distance_mm and pixel_mm (the optics' nominal values)"
         )
     wd = config.calibration.working_distance_mm
-    if config.camera.camera_model is not None:
-        intrinsics = read_camera_model(config.camera.camera_model)
-    else:
-        height, width = devices.camera.grab().image.shape[:2]
-        f = wd / config.calibration.pixel_mm
-        K = np.array([[f, 0.0, (width - 1) / 2.0], [0.0, f, (height - 1) / 2.0], [0.0, 0.0, 1.0]])
-        intrinsics = CameraIntrinsics(K, np.zeros(5), (width, height))
+    intrinsics = camera_intrinsics(config, devices.camera)
     safety = config.robot.safety if config.robot is not None else {}
     speed = float(safety.get("jog_speed_pct", JOG_SPEED_PCT)) if speed_pct is None else speed_pct
     return TeachRig(
