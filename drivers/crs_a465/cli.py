@@ -7,8 +7,9 @@ COMMAND: ``status``, ``where``, ``home``, ``ready``, ``speed PERCENT``, ``joint 
 --calibration FILE`` (a compensated move: the calibrated model's inverse kinematics, then joint
 moves), ``to-reference`` (the arm's route from wherever it is to the station's reference pose,
 ``station.arm_route``: needs ``--config``), ``jog joint J DELTA`` / ``jog camera x|y|z|turn DELTA``
-and ``acknowledge`` (``_cli_station``), ``selftest`` (``station.selftest``). ``--config FILE`` is the
-station configuration: its ``[robot]`` port (when neither ``--sim`` nor ``--port`` is given),
+and ``acknowledge`` (``_cli_station``), ``selftest [--checks LIST]`` (``station.selftest``: exit 0 when
+every check passed, 1 otherwise; with ``--sim`` a whole simulated station in real time). ``--config
+FILE`` is the station configuration: its ``[robot]`` port (when neither ``--sim`` nor ``--port`` is given),
 reference pose, safety limits (keep-out volumes, speed cap, carried bodies from the mounts) for every
 command (``--max-step`` still overrides its step), the camera's mounting, and the data directory that
 keeps the stop latch across calls. ``--sim`` starts a fresh controller twin
@@ -122,6 +123,9 @@ def _run_command(robot: CrsA465, args: argparse.Namespace) -> None:
     if name == "jog":
         _cli_station.run_jog(robot, args)
         return
+    if name == "selftest":
+        _cli_station.run_selftest(robot, args)
+        return
     actions: dict[str, Callable[[], None]] = {
         "home": robot.home,
         "ready": robot.ready,
@@ -177,6 +181,8 @@ def _station_config(args: argparse.Namespace) -> dict[str, Any]:
     args.station = None
     args.latch_file = None
     if args.config is None:
+        if args.robot_command == "selftest" and args.sim:
+            return {}  # the simulated station's own configuration
         if args.robot_command in _NEEDS_CONFIG or (args.robot_command == "jog" and args.jog_kind == "camera"):
             raise _BadOptionError(
                 f"{args.robot_command} needs --config FILE: the station configuration (its [robot] reference"
@@ -252,6 +258,11 @@ def _check_positionals(args: argparse.Namespace) -> None:
 def _settings(args: argparse.Namespace) -> dict[str, Any]:
     """Every option value validated into the driver's settings before anything is opened."""
     _check_positionals(args)
+    if args.robot_command == "selftest":
+        unknown = sorted(set(args.checks.split(",")) - set(_cli_station.CHECK_NAMES))
+        if unknown:
+            names = ",".join(_cli_station.CHECK_NAMES)
+            raise _BadOptionError(f"--checks: unknown {unknown}; choose from {names}")
     if getattr(args, "calibration", None) is not None:
         from station.kinematics import Kinematics
 
@@ -330,7 +341,7 @@ def _supervise(robot: CrsA465, args: argparse.Namespace) -> int:
             return _EXIT_OF_SIGNAL[signal.Signals(received[0])]
         if failure:
             raise failure[0]
-        return 0
+        return int(getattr(args, "exit_code", 0))
     finally:
         for signum, handler in previous.items():
             signal.signal(signum, handler)
@@ -346,6 +357,9 @@ def handle(args: argparse.Namespace) -> int:
     twin: _Twin | None = None
     robot: CrsA465 | None = None
     try:
+        if args.sim and args.robot_command == "selftest":
+            robot, twin = _cli_station.open_sim_station(args)
+            return _supervise(robot, args)
         if args.sim:
             twin = config.build("controller", "sim", shell=args.shell, app_name=args.app_name)
             port = twin.port
