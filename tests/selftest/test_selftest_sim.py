@@ -143,3 +143,22 @@ def test_a_halt_key_the_controller_ignores_fails_the_halt() -> None:
         robot.close()
         devices.camera.close()
         devices.close_owned()
+
+
+def test_a_ready_pose_other_than_the_configured_one_fails_ready() -> None:
+    devices = build_sim_station(seed=8, ready_pose_deg=(0.0, 0.0, 90.0, 0.0, 80.0, 0.0))  # the controller's
+    robot = devices.robot
+    assert isinstance(robot, CrsA465)
+    robot.connect()
+    devices.camera.connect()
+    try:
+        start = robot.where().commanded_joints_deg
+        check = run_selftest(_rig(devices, robot), checks=("ready",)).check("ready")
+        assert check.state == "failed"
+        assert "ready_pose_deg" in check.summary
+        assert check.details["worst_deg"] == pytest.approx(10.0)
+        np.testing.assert_allclose(robot.where().commanded_joints_deg, start, atol=1e-3)  # and back
+    finally:
+        robot.close()
+        devices.camera.close()
+        devices.close_owned()
