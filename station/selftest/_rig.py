@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from station.arm_route import max_step_of
 from station.camera_model import CameraIntrinsics
 from station.config import StationConfig
 from station.devices import Camera, MotionRejectedError, Robot
@@ -16,8 +17,10 @@ from station.kinematics import Kinematics
 from station.teach import camera_intrinsics
 from station.vision import MeasureParams, measure
 
-__all__ = ["HALT_SPEED_PCT", "SelftestRig", "free", "offset", "selftest_rig"]
+__all__ = ["DEFAULT_READY_POSE_DEG", "HALT_SPEED_PCT", "SelftestRig", "free", "offset", "selftest_rig"]
 
+DEFAULT_READY_POSE_DEG = (0.0, 0.0, 90.0, 0.0, 90.0, 0.0)
+"""Where ``ready`` is assumed to go when the configuration does not say (DIALECT.md, still assumed 4)."""
 HALT_SPEED_PCT = 5.0
 """The halt is tested at this speed (the issue's "low speed")."""
 
@@ -97,25 +100,32 @@ def selftest_rig(
     robot: Robot,
     camera: Camera,
     *,
-    ready_pose_deg: Sequence[float] | None,
-    max_step_deg: float,
+    ready_pose_deg: Sequence[float] | None = None,
+    max_step_deg: float | None = None,
 ) -> SelftestRig:
     """The rig of a station's configuration and its robot and camera (connected): the nominal model with
     ``[camera] mount``, the camera model (:func:`station.teach.camera_intrinsics`), the working distance
-    (``[calibration]`` ``working_distance_mm``), and the jog speed (``[robot] safety.jog_speed_pct``)."""
+    (``[calibration]`` ``working_distance_mm``), and the jog speed (``[robot] safety.jog_speed_pct``).
+
+    ``ready_pose_deg`` and ``max_step_deg`` ``None``: the configuration's (``[robot] safety``), else the
+    driver's defaults as the station knows them (``DEFAULT_READY_POSE_DEG``, DIALECT.md's assumption, and
+    ``station.arm_route.DEFAULT_MAX_STEP_DEG``); a caller holding the driver passes its ``guard.limits``'.
+    """
     if config.calibration is None:
         raise ValueError(
             "the self-test needs [calibration] working_distance_mm (and pixel_mm without [camera]"
             " camera_model): the optics' nominal values"
         )
     safety = config.robot.safety if config.robot is not None else {}
+    if ready_pose_deg is None:
+        ready_pose_deg = tuple(safety.get("ready_pose_deg", DEFAULT_READY_POSE_DEG))
     return SelftestRig(
         robot=robot,
         camera=camera,
         nominal=Kinematics(tool=config.camera_mount().matrix()),
         intrinsics=camera_intrinsics(config, camera),
         working_distance_mm=config.calibration.working_distance_mm,
-        ready_pose_deg=None if ready_pose_deg is None else tuple(float(v) for v in ready_pose_deg),
-        max_step_deg=max_step_deg,
+        ready_pose_deg=tuple(float(v) for v in ready_pose_deg),
+        max_step_deg=max_step_of(safety) if max_step_deg is None else max_step_deg,
         speed_pct=float(safety.get("jog_speed_pct", JOG_SPEED_PCT)),
     )

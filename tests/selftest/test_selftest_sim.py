@@ -162,3 +162,16 @@ def test_a_ready_pose_other_than_the_configured_one_fails_ready() -> None:
         robot.close()
         devices.camera.close()
         devices.close_owned()
+
+
+def test_the_rig_takes_the_ready_pose_and_step_from_the_configuration_as_the_driver_does(
+    station: tuple[StationDevices, SelftestRig],
+) -> None:
+    devices, _ = station
+    robot = devices.robot
+    assert isinstance(robot, CrsA465)
+    rig = selftest_rig(
+        devices.config, robot, devices.camera
+    )  # what the session code, without the driver, calls
+    assert rig.ready_pose_deg == robot.guard.limits.ready_pose_deg
+    assert rig.max_step_deg == robot.guard.limits.max_step_deg
