@@ -64,6 +64,15 @@ def check_halt(rig: SelftestRig) -> CheckResult:
     rig.robot.stop()
     halt_s = rig.clock() - t1
     worker.join(10.0 + 3.0 * timed_s)
+    if worker.is_alive():
+        return CheckResult(
+            "halt",
+            "failed",
+            f"the halted move had not returned {10.0 + 3.0 * timed_s:.0f} s after the halt key: press the"
+            " E-stop, look at the arm, and check the controller's link and its halt (DIALECT.md, still"
+            " assumed 2)",
+            {"timed_s": round(timed_s, 4), "halt_after_s": round(halt_s, 4)},
+        )
     rig.robot.wait_settled(10.0)
     end = rig.robot.where().joints_deg[axis - 1]
     travelled = (end - begin) * math.copysign(1.0, delta)
