@@ -21,6 +21,7 @@ from sim.world import World, WorldSpec
 from station.config import (
     CalibrationConfig,
     CameraConfig,
+    CameraMount,
     DistanceSensorConfig,
     RobotConfig,
     SensorMount,
@@ -31,13 +32,29 @@ from station.config import (
 )
 from station.devices import DistanceSensor, Robot, XYTable
 from station.kinematics import Kinematics, transform
+from station.mounts import MountBody
 from station.plans.calibration import LOOK_DOWN, square_on
 from station.prompts import PromptBroker
 
 #: The simulated Z sensor's mount in the camera frame: 30 mm beside the optical axis, beam parallel to
 #: it, reference point in the camera's pinhole plane, so that it reads the working distance (68 mm, inside
-#: the IL-065's 55-105 mm) when the crossing is in focus.
-SIM_SENSOR_MOUNT = SensorMount(translation_mm=(30.0, 0.0, 0.0), rotation_deg=(0.0, 0.0, 0.0))
+#: the IL-065's 55-105 mm) when the crossing is in focus. Its head (for the keep-out): a 20 mm cylinder
+#: behind the reference point.
+SIM_SENSOR_MOUNT = SensorMount(
+    translation_mm=(30.0, 0.0, 0.0),
+    rotation_deg=(0.0, 0.0, 0.0),
+    body=MountBody(radius_mm=20.0, z_from_mm=-70.0, z_to_mm=-10.0),
+)
+
+SIM_MAX_SPEED_PCT = 80.0
+"""The simulated cell's speed cap: repeatability's default speed (80 %) until the sessions' pre-flight
+refuses a plan above the cap (``station.speed_cap.check_plan_speeds``); a lab's default is 50 %."""
+
+BENCH_TOP_Z_MM = 250.0
+"""The bench the X-Y table and the angle blocks stand on (base frame, mm): below every artifact."""
+
+PLATE_MM = 10.0
+"""The thickness of each artifact's plate (its top face is the artifact's plane)."""
 
 
 class SimStation:
@@ -110,18 +127,84 @@ class SimStation:
 SIM_TABLE_ORIGIN_IN = (0.5, 0.5)
 
 
+def sim_camera_mount(world: World) -> CameraMount:
+    """The simulated camera's mounting: the tool point along the flange's axis, not turned; its body a
+    30 mm cylinder from the lens front back to the flange."""
+    return CameraMount(translation_mm=(0.0, 0.0, float(world.spec.tool_length_mm)))
+
+
+def sim_fixtures(world: World) -> list[dict[str, Any]]:
+    """The simulated cell's fixtures as keep-out volumes (base frame, mm): the X-Y table's carriage and
+    micrometers under the table's artifact, each artifact's plate (under its top face), and the angle
+    block each bench artifact stands on, from the bench up to its plate's lowest edge."""
+    table = world.artifact_poses()[0]
+    x, y, top = (float(v) for v in table[:3, 3])
+    volumes: list[dict[str, Any]] = [
+        {
+            "shape": "box",
+            "name": "X-Y table",
+            "center_mm": (x, y, (BENCH_TOP_Z_MM + top - PLATE_MM) / 2.0),
+            "size_mm": (220.0, 220.0, top - PLATE_MM - BENCH_TOP_Z_MM),
+        }
+    ]
+    half = world.spec.artifact_half_size_mm
+    for k, T in enumerate(world.artifact_poses()):
+        down = T[:3, 2]  # the artifact's normal points down into its plate
+        centre = T[:3, 3] + down * PLATE_MM / 2.0
+        rx, ry, rz = _xyz_angles_deg(T[:3, :3])
+        name = "table artifact plate" if k == 0 else f"bench artifact {k} plate"
+        volumes.append(
+            {
+                "shape": "box",
+                "name": name,
+                "center_mm": tuple(float(v) for v in centre),
+                "size_mm": (2.0 * half, 2.0 * half, PLATE_MM),
+                "rotation_deg": (rx, ry, rz),
+            }
+        )
+        if k == 0:
+            continue
+        tilt = math.acos(min(1.0, abs(float(down[2]))))
+        lowest = float(T[2, 3]) - half * math.sin(tilt) * math.sqrt(2.0) - PLATE_MM
+        volumes.append(
+            {
+                "shape": "cylinder",
+                "name": f"bench artifact {k} angle block",
+                "base_mm": (float(T[0, 3]), float(T[1, 3]), BENCH_TOP_Z_MM),
+                "radius_mm": 40.0,
+                "height_mm": lowest - BENCH_TOP_Z_MM,
+            }
+        )
+    return volumes
+
+
+def _xyz_angles_deg(R: np.ndarray) -> tuple[float, float, float]:
+    """``(rx, ry, rz)`` with ``R = rot_z(rz) @ rot_y(ry) @ rot_x(rx)`` (the mounts' and boxes' order)."""
+    ry = math.asin(max(-1.0, min(1.0, -float(R[2, 0]))))
+    rx = math.atan2(float(R[2, 1]), float(R[2, 2]))
+    rz = math.atan2(float(R[1, 0]), float(R[0, 0]))
+    return math.degrees(rx), math.degrees(ry), math.degrees(rz)
+
+
 def sim_safety(world: World) -> dict[str, Any]:
-    """Safety limits that match the simulated world: the artifact plane is the table plane, the camera's
-    front is the tool point, and it must stay 40 mm above the artifact (it works at 68 mm)."""
+    """The simulated cell's ``[robot] safety``: the artifact plane is the table plane, the camera's front
+    (the tool point) must stay 40 mm above it (it works at 68 mm), the cell's fixtures are keep-out
+    volumes (:func:`sim_fixtures`), and the speed cap is :data:`SIM_MAX_SPEED_PCT`.
+
+    ``camera_offset_mm`` (the mounting's old, translation-only form) is kept beside ``[camera] mount``
+    for the session code that still reads it; the configuration checks that the two agree.
+    """
     return {
-        "table_z_mm": float(world.artifact_pose()[2, 3]),
+        "table_z_mm": float(world.artifact_poses()[0][2, 3]),  # the table's, wherever the arm is
         "camera_offset_mm": (0.0, 0.0, float(world.spec.tool_length_mm)),
         "min_camera_height_mm": 40.0,
         "max_step_deg": 30.0,
+        "max_speed_pct": SIM_MAX_SPEED_PCT,
+        "keep_out": sim_fixtures(world),
     }
 
 
-def taught_artifacts_mm(world: World) -> list[tuple[float, float, float]]:
+def taught_artifacts_mm(world: World, *, digits: int | None = 1) -> list[tuple[float, float, float]]:
     """Each artifact's crossing as a person would teach it: the arm jogged until the true camera, square to
     the artifact, sees the crossing centred at the working distance, the position then read through the
     nominal kinematics (what WORLD reports) plus the working distance along the optical axis. Off the
@@ -134,23 +217,30 @@ def taught_artifacts_mm(world: World) -> list[tuple[float, float, float]]:
         camera = transform(square_on(up) @ LOOK_DOWN, T[:3, 3] + wd * np.asarray(up))
         q = world.kinematics.inverse(camera, seed_deg=world.spec.reference_joints_deg)
         taught = nominal.forward(q) @ np.array([0.0, 0.0, wd, 1.0])
-        out.append((round(float(taught[0]), 1), round(float(taught[1]), 1), round(float(taught[2]), 1)))
+        x, y, z = (float(v) if digits is None else round(float(v), digits) for v in taught[:3])
+        out.append((x, y, z))
     return out
 
 
-def taught_normals(world: World) -> list[tuple[float, float, float]]:
+def taught_normals(world: World, *, digits: int | None = 3) -> list[tuple[float, float, float]]:
     """Each artifact's upward normal as measured on the bench (an inclinometer: to 0.001)."""
-    return [tuple(round(-float(v), 3) for v in T[:3, 2]) for T in world.artifact_poses()]  # type: ignore[misc]
+    return [
+        tuple(-float(v) if digits is None else round(-float(v), digits) for v in T[:3, 2])  # type: ignore[misc]
+        for T in world.artifact_poses()
+    ]
 
 
-def taught_turns_deg(world: World) -> list[float]:
+def taught_turns_deg(world: World, *, digits: int | None = 1) -> list[float]:
     """Each artifact's yaw as a person would teach it: the camera turn (about its axis, from square on
     with the image's x along the base's -x, see ``station.plans.calibration``) at which the cross
     appears square."""
     out = []
-    for T, up in zip(world.artifact_poses(), taught_normals(world), strict=True):
+    for T, up in zip(
+        world.artifact_poses(), taught_normals(world, digits=None if digits is None else 3), strict=True
+    ):
         u = (square_on(up) @ LOOK_DOWN).T @ T[:3, 0]
-        out.append(round(math.degrees(math.atan2(float(u[1]), float(u[0]))), 1))
+        turn = math.degrees(math.atan2(float(u[1]), float(u[0])))
+        out.append(turn if digits is None else round(turn, digits))
     return out
 
 
@@ -205,7 +295,7 @@ def build_sim_station(
                 safety=safety,
                 reference_joints_deg=reference,
             ),
-            camera=CameraConfig(driver="sim", options={"seed": seed}),
+            camera=CameraConfig(driver="sim", options={"seed": seed}, mount=sim_camera_mount(sim.world)),
             table=TableConfig(driver="manual", options={"origin_in": SIM_TABLE_ORIGIN_IN}, prompts="api"),
             distance_sensor=sensor_config,
             calibration=CalibrationConfig(
@@ -216,7 +306,7 @@ def build_sim_station(
                 pixel_mm=1.0 / sim.world.spec.camera.px_per_mm,
             ),
         )
-        robot: Robot = build("robot", "crs_a465", port=sim.port, safety=safety)
+        robot: Robot = build("robot", "crs_a465", port=sim.port, safety=config.robot_safety())
         table: XYTable = build("table", "manual", broker=sim.broker, origin_in=SIM_TABLE_ORIGIN_IN)
     except BaseException:
         sim.close()

@@ -10,6 +10,7 @@ from __future__ import annotations
 import inspect
 import logging
 import math
+import os
 import tomllib
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
@@ -24,12 +25,22 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from station._pydantic import problems as describe
 from station.compute import CLUSTER_HELP, ComputeSpec, parse_cluster
 from station.devices import Camera, DistanceSensor, Robot, XYTable
+from station.mounts import (
+    LEGACY_CAMERA_OFFSET_KEY,
+    CameraMount,
+    MountConflictError,
+    SensorMount,
+    camera_mount_of,
+)
 from station.prompts import PromptBroker
 from station.redaction import redact
 
 log = logging.getLogger(__name__)
 
 DEVICE_GROUP = "station.devices"
+
+ROBOT_LATCH_FILE = "robot-stop-latch.json"
+"""The robot's stop latch in the data directory (``drivers/crs_a465/_latch.py``)."""
 
 
 class ConfigurationError(ValueError):
@@ -101,69 +112,20 @@ class RobotConfig(DeviceConfig):
 
 
 class CameraConfig(DeviceConfig):
-    """The flange camera, with an optional camera model (intrinsics and distortion) for undistortion."""
+    """The flange camera, with an optional camera model (intrinsics and distortion) for undistortion,
+    and its mounting on the flange (``station.mounts.CameraMount``: translation and rotation, lens front,
+    body), which gives the calibration its nominal camera frame and the keep-out its camera body."""
 
     camera_model: Path | None = Field(None, description="JSON or OpenCV YAML/XML camera model file")
+    mount: CameraMount | None = Field(
+        None, description="the camera frame in the flange frame; default: [robot] safety.camera_offset_mm"
+    )
 
 
 class TableConfig(DeviceConfig):
     """The X-Y table; ``prompts`` says who answers the manual table's prompts when run from the CLI."""
 
     prompts: Literal["terminal", "api"] = "terminal"
-
-
-class SensorMount(BaseModel):
-    """Where a distance sensor sits in the camera (tool) frame: its reference point (the origin its
-    distances are measured from) at ``translation_mm`` and its axes turned by ``rotation_deg``; its +z
-    axis is the beam.
-
-    ``rotation_deg = (rx, ry, rz)``: R = rot_z(rz) @ rot_y(ry) @ rot_x(rx) (about the camera's fixed x,
-    then y, then z axes). The default is beside the camera, beam parallel to the optical axis.
-    """
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    translation_mm: tuple[float, float, float] = (30.0, 0.0, 0.0)
-    rotation_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
-
-    @field_validator("translation_mm", "rotation_deg")
-    @classmethod
-    def _finite(cls, v: tuple[float, ...]) -> tuple[float, ...]:
-        if not all(math.isfinite(a) for a in v):
-            raise ValueError(f"must be finite numbers, got {v}")
-        return v
-
-    def matrix(self) -> npt.NDArray[np.float64]:
-        """4x4 pose of the sensor in the camera frame (mm)."""
-        rx, ry, rz = (math.radians(a) for a in self.rotation_deg)
-        cx, sx, cy, sy, cz, sz = (
-            math.cos(rx),
-            math.sin(rx),
-            math.cos(ry),
-            math.sin(ry),
-            math.cos(rz),
-            math.sin(rz),
-        )
-        Rx = np.array([[1.0, 0.0, 0.0], [0.0, cx, -sx], [0.0, sx, cx]])
-        Ry = np.array([[cy, 0.0, sy], [0.0, 1.0, 0.0], [-sy, 0.0, cy]])
-        Rz = np.array([[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]])
-        T = np.eye(4)
-        T[:3, :3] = Rz @ Ry @ Rx
-        T[:3, 3] = self.translation_mm
-        return T
-
-    def point_mm(self, z_mm: float) -> npt.NDArray[np.float64]:
-        """The point a reading ``z_mm`` measured, in the camera frame (mm): ``mount @ (0, 0, z, 1)``."""
-        return self.matrix()[:3, :] @ np.array([0.0, 0.0, float(z_mm), 1.0])
-
-    def reading_at_plane_mm(self, distance_mm: float) -> float:
-        """What the sensor reads on a plane square to the optical axis ``distance_mm`` in front of the
-        camera (e.g. the working distance: the reading that means "in focus")."""
-        T = self.matrix()
-        beam_z = float(T[2, 2])
-        if beam_z <= 1e-9:
-            raise ValueError("the sensor's beam does not point forward along the optical axis")
-        return (float(distance_mm) - float(T[2, 3])) / beam_z
 
 
 class DistanceSensorConfig(DeviceConfig):
@@ -248,6 +210,9 @@ class CalibrationConfig(BaseModel):
     artifact_normals: list[tuple[float, float, float]] | None = None
     working_distance_mm: float = Field(gt=0, le=1000)
     pixel_mm: float = Field(gt=0, le=1.0, description="object-side pixel size at the working distance")
+    artifact_names: list[str] | None = Field(
+        None, description="a name for each artifact (station teach artifact NAME); default 1, 2, ..."
+    )
 
     @field_validator("artifacts_mm")
     @classmethod
@@ -278,7 +243,19 @@ class CalibrationConfig(BaseModel):
                     raise ValueError(
                         f"artifact_normals must be upward vectors within 60 deg of the base's +z, got {n}"
                     )
+        names = self.artifact_names
+        if names is not None:
+            if len(names) != len(self.artifacts_mm):
+                raise ValueError(
+                    f"artifact_names has {len(names)} names for {len(self.artifacts_mm)} artifacts_mm"
+                )
+            if len(set(names)) != len(names) or not all(n.strip() for n in names):
+                raise ValueError(f"artifact_names must be distinct and not blank, got {names}")
         return self
+
+    def names(self) -> list[str]:
+        """Each artifact's name: ``artifact_names``, else ``1``, ``2``, ..."""
+        return list(self.artifact_names or [str(k + 1) for k in range(len(self.artifacts_mm))])
 
 
 class StationConfig(BaseModel):
@@ -333,9 +310,37 @@ class StationConfig(BaseModel):
     )
     calibration: CalibrationConfig | None = Field(None, description="the kinematic calibration's cell")
 
+    @model_validator(mode="after")
+    def _one_camera_mount(self) -> StationConfig:
+        try:
+            self.camera_mount()
+        except MountConflictError as exc:
+            raise ValueError(str(exc)) from None
+        return self
+
     def snapshot(self) -> dict[str, Any]:
         """JSON-ready copy for the record, with anything that looks like a secret redacted."""
         return redact(self.model_dump(mode="json"))
+
+    def camera_mount(self) -> CameraMount:
+        """The camera's mounting on the flange (``[camera] mount``, else the old ``[robot]
+        safety.camera_offset_mm``): the nominal camera frame of jogs, teaching and calibration."""
+        return camera_mount_of(self.model_dump(mode="json"))
+
+    def robot_latch_file(self) -> Path | None:
+        """Where the robot's stop latch is kept across processes: ``robot-stop-latch.json`` in the data
+        directory (``data_dir``, else ``$STATION_DATA``); ``None`` when neither is set (then the latch
+        lives only as long as the driver object)."""
+        base = self.data_dir if self.data_dir is not None else os.environ.get("STATION_DATA")
+        return None if not base else Path(base) / ROBOT_LATCH_FILE
+
+    def robot_safety(self) -> dict[str, Any]:
+        """The robot driver's safety fields: ``[robot] safety`` with the camera's lens front
+        (``camera_offset_mm``) and the carried bodies (the camera's and the distance sensor head's, in the
+        flange frame) from the mounts. Empty without a robot."""
+        if self.robot is None:
+            return {}
+        return robot_safety_fields(self.robot.safety, self.camera_mount(), self.distance_sensor)
 
 
 def load_config(path: str | Path) -> StationConfig:
@@ -366,6 +371,38 @@ def load_config(path: str | Path) -> StationConfig:
             update={"camera_model": base / config.camera.camera_model}
         )
     return config.model_copy(update=updates) if updates else config
+
+
+def robot_safety_fields(
+    safety: dict[str, Any], camera: CameraMount, sensor: DistanceSensorConfig | None
+) -> dict[str, Any]:
+    """``safety`` (a robot's ``[robot] safety``) completed from the mounts: ``camera_offset_mm`` (the lens
+    front in the flange frame) and ``carried`` (the camera body and the sensor head as capsules in the
+    flange frame, after any the configuration lists itself)."""
+    out = dict(safety)
+    out[LEGACY_CAMERA_OFFSET_KEY] = tuple(float(v) for v in camera.front_point_mm())
+    carried = list(out.get("carried") or [])
+    body = camera.body_or_default()
+    a, b = camera.body_segment_mm(body)
+    carried.append(
+        {"name": "camera body", "start_mm": tuple(a), "end_mm": tuple(b), "radius_mm": body.radius_mm}
+    )
+    if sensor is not None and sensor.mount.body is not None:
+        head = sensor.mount.body
+        in_flange = camera.matrix() @ sensor.mount.matrix()
+        ends = in_flange[:3, :] @ np.array(
+            [[0.0, 0.0], [0.0, 0.0], [head.z_from_mm, head.z_to_mm], [1.0, 1.0]]
+        )
+        carried.append(
+            {
+                "name": "distance sensor head",
+                "start_mm": tuple(float(v) for v in ends[:, 0]),
+                "end_mm": tuple(float(v) for v in ends[:, 1]),
+                "radius_mm": head.radius_mm,
+            }
+        )
+    out["carried"] = carried
+    return out
 
 
 # --------------------------------------------------------------------------- devices for a session
@@ -425,8 +462,10 @@ def open_station(config: StationConfig, *, broker: PromptBroker | None = None) -
     robot: Robot | None = None
     if config.robot is not None:
         options = dict(config.robot.options)
-        if config.robot.safety:
-            options["safety"] = dict(config.robot.safety)
+        options["safety"] = config.robot_safety()
+        latch = config.robot_latch_file()
+        if latch is not None:
+            options.setdefault("latch_file", str(latch))
         robot = build("robot", config.robot.driver, **options)
     table: XYTable | None = None
     if config.table is not None:

@@ -15,6 +15,8 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 import numpy.typing as npt
 
+from station.local_ack import LocalAcknowledgement
+
 # --------------------------------------------------------------------------- errors
 
 
@@ -58,9 +60,19 @@ class ControllerError(DeviceError):
 class MotionStoppedError(DeviceError):
     """A motion was stopped (``stop()``, or a halt at the controller) before reaching its target.
 
-    ``stop()`` latches: every motion raises this until ``clear_stop()``. Re-read the position before
-    going on.
+    ``stop()`` latches: every motion raises this until the stop is acknowledged at the station
+    (``acknowledge_stop``). Re-read the position before going on.
     """
+
+
+class StopLatchedError(MotionStoppedError):
+    """A stop is latched: motions are refused until a person at the station acknowledges it
+    (``acknowledge_stop`` with a ``station.local_ack.LocalAcknowledgement``); ``reason`` says what
+    latched it."""
+
+    def __init__(self, message: str, *, reason: str = "") -> None:
+        super().__init__(message)
+        self.reason = reason
 
 
 # --------------------------------------------------------------------------- lifecycle and identity
@@ -140,7 +152,8 @@ class Robot(Protocol):
     runs the same checks without any I/O. Motions return when the arm has arrived; ``wait_settled``
     blocks until an arm moved by someone else is still. Controller refusals raise ``ControllerError``
     subclasses; a lost link ``DeviceConnectionError`` (``connect()`` again re-reads the arm state).
-    ``stop()`` latches: until ``clear_stop()``, every motion raises ``MotionStoppedError``.
+    ``stop()``, a halt, an E-stop or a controller error during a motion latch: until a person at the
+    station acknowledges it (``acknowledge_stop``), every motion raises ``StopLatchedError``.
     """
 
     def connect(self) -> None:
@@ -181,7 +194,18 @@ class Robot(Protocol):
         """Stop any motion now, best effort (callable from another thread); latches until ``clear_stop``."""
 
     def clear_stop(self) -> None:
-        """Release the latch set by ``stop()``: motions are accepted again."""
+        """Release nothing: raise ``StopLatchedError`` when a stop is latched (what to do in its message),
+        do nothing otherwise. A session's start calls it, so that no session clears a latch itself."""
+
+    def acknowledge_stop(self, ack: LocalAcknowledgement) -> str | None:
+        """Release the latch with a person's acknowledgement at the station; return what had latched it.
+
+        Anything but a fresh, unused ``LocalAcknowledgement`` raises
+        ``station.local_ack.RemoteAcknowledgementError`` and releases nothing.
+        """
+
+    def check_speed(self, percent: float) -> None:
+        """Raise what ``set_speed(percent)`` would raise on the host (the speed cap), with no I/O."""
 
     def identity(self) -> DeviceIdentity:
         """Model, serial, port and firmware as far as the device reports them."""
@@ -537,6 +561,7 @@ __all__ = [
     "Roi",
     "RoiSelectable",
     "SensorAlarmError",
+    "StopLatchedError",
     "TablePosition",
     "XYTable",
     "average_frames",

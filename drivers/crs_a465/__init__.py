@@ -13,6 +13,7 @@ or directly with :func:`open_robot` / :class:`CrsA465`. The dialect and what is 
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping
 from typing import Any, Literal
 
@@ -68,12 +69,14 @@ def build_robot(
     safety: SafetyLimits | Mapping[str, Any] | None = None,
     motion: MotionSettings | Mapping[str, Any] | None = None,
     kinematics: Kinematics | None = None,
+    latch_file: str | os.PathLike[str] | None = None,
 ) -> CrsA465:
     """Build an unconnected :class:`CrsA465` from plain configuration values (all validated here).
 
     ``shell`` is ``"system"`` (``$ `` prompt) or ``"application"`` (``APP_NAME> `` prompt);
     ``link``, ``safety`` and ``motion`` take the fields of :class:`LinkSettings`, :class:`SafetyLimits`
-    and :class:`MotionSettings`; ``baudrate`` overrides ``link``'s. Raises pydantic's ValidationError
+    and :class:`MotionSettings`; ``baudrate`` overrides ``link``'s; ``latch_file`` keeps the stop latch
+    across processes (the station's data directory). Raises pydantic's ValidationError
     (a ValueError) or InvalidArgumentError on a bad value; nothing is opened.
     """
     link_values = link.model_dump() if isinstance(link, LinkSettings) else dict(link or {})
@@ -93,7 +96,13 @@ def build_robot(
         motion if isinstance(motion, MotionSettings) else MotionSettings.model_validate(dict(motion or {}))
     )
     return CrsA465(
-        port, link=link_settings, shell=profile, safety=limits, motion=timing, kinematics=kinematics
+        port,
+        link=link_settings,
+        shell=profile,
+        safety=limits,
+        motion=timing,
+        kinematics=kinematics,
+        latch_file=latch_file,
     )
 
 
@@ -107,6 +116,7 @@ def open_robot(
     safety: SafetyLimits | Mapping[str, Any] | None = None,
     motion: MotionSettings | Mapping[str, Any] | None = None,
     kinematics: Kinematics | None = None,
+    latch_file: str | os.PathLike[str] | None = None,
 ) -> Robot:
     """The station's factory (``robot.crs_a465``): an unconnected robot; call ``connect()`` on it.
 
@@ -121,6 +131,7 @@ def open_robot(
         safety=safety,
         motion=motion,
         kinematics=kinematics,
+        latch_file=latch_file,
     )
 
 

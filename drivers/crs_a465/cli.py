@@ -1,14 +1,18 @@
 """``station robot``: talk to a C500C controller (a real one, ``station sim controller``, any emulator).
 
-    station robot (--sim | --port PORT [--baud N]) [--config FILE] [--json] COMMAND
+    station robot (--sim | --port PORT [--baud N] | --config FILE) [--config FILE] [--json] COMMAND
 
 COMMAND: ``status``, ``where``, ``home``, ``ready``, ``speed PERCENT``, ``joint AXIS DEGREES``
 (relative), ``move-joints D1 D2 D3 D4 D5 D6`` (absolute), ``move-camera X Y Z Z_ROT Y_ROT X_ROT
 --calibration FILE`` (a compensated move: the calibrated model's inverse kinematics, then joint
 moves), ``to-reference`` (the arm's route from wherever it is to the station's reference pose,
-``station.arm_route``: needs ``--config``). ``--config FILE`` is the station configuration: its
-``[robot]`` reference pose, and its safety limits for every command (``--max-step`` still overrides
-its step). ``--sim`` starts a fresh controller twin
+``station.arm_route``: needs ``--config``), ``jog joint J DELTA`` / ``jog camera x|y|z|turn DELTA``
+and ``acknowledge`` (``_cli_station``), ``selftest [--checks LIST]`` (``station.selftest``: exit 0 when
+every check passed, 1 otherwise; with ``--sim`` a whole simulated station in real time). ``--config
+FILE`` is the station configuration: its ``[robot]`` port (when neither ``--sim`` nor ``--port`` is given),
+reference pose, safety limits (keep-out volumes, speed cap, carried bodies from the mounts) for every
+command (``--max-step`` still overrides its step), the camera's mounting, and the data directory that
+keeps the stop latch across calls. ``--sim`` starts a fresh controller twin
 for this call (through the device registry: drivers never import ``sim``). Motion commands return once
 the arm has arrived, then print the position. Exit 0 on success, 1 when the controller or the host's
 checks refuse (the message on stderr), 2 on a usage error or a bad option value (one line, nothing
@@ -31,7 +35,7 @@ from typing import Any, Protocol
 
 from pydantic import ValidationError
 
-from drivers.crs_a465 import build_robot
+from drivers.crs_a465 import _cli_station, build_robot
 from drivers.crs_a465._link import LinkSettings
 from drivers.crs_a465._motion import MotionSettings
 from drivers.crs_a465._robot import CrsA465
@@ -39,6 +43,7 @@ from drivers.crs_a465._safety import SafetyLimits
 from station import config
 from station.arm_route import go_to_reference
 from station.devices import JOINT_COUNT, DeviceError, RobotPosition, RobotStatus
+from station.local_ack import RemoteAcknowledgementError
 
 log = logging.getLogger(__name__)
 
@@ -115,6 +120,12 @@ def _run_command(robot: CrsA465, args: argparse.Namespace) -> None:
     if name == "where":
         _print_position(robot.where(), args.json)
         return
+    if name == "jog":
+        _cli_station.run_jog(robot, args)
+        return
+    if name == "selftest":
+        _cli_station.run_selftest(robot, args)
+        return
     actions: dict[str, Callable[[], None]] = {
         "home": robot.home,
         "ready": robot.ready,
@@ -167,12 +178,18 @@ def _station_config(args: argparse.Namespace) -> dict[str, Any]:
     """``--config``'s robot safety limits (keyword values of :class:`SafetyLimits`), and its reference
     pose on ``args.reference``; ``to-reference`` without ``--config`` is a usage error."""
     args.reference = None
+    args.station = None
+    args.latch_file = None
     if args.config is None:
-        if args.robot_command == "to-reference":
+        if args.robot_command == "selftest" and args.sim:
+            return {}  # the simulated station's own configuration
+        if args.robot_command in _NEEDS_CONFIG or (args.robot_command == "jog" and args.jog_kind == "camera"):
             raise _BadOptionError(
-                "to-reference needs --config FILE: the station configuration's [robot] reference pose and"
-                " safety limits"
+                f"{args.robot_command} needs --config FILE: the station configuration (its [robot] reference"
+                " pose and safety limits, the camera's mounting, the data directory keeping the stop latch)"
             )
+        if not (args.sim or args.port):
+            raise _BadOptionError("give --sim, --port PORT or --config FILE (whose [robot] names the port)")
         return {}
     try:
         station = config.load_config(args.config)
@@ -181,7 +198,16 @@ def _station_config(args: argparse.Namespace) -> dict[str, Any]:
     if station.robot is None:
         raise _BadOptionError(f"--config {args.config}: no [robot] section (its reference pose and safety)")
     args.reference = tuple(station.robot.reference_joints_deg)
-    return dict(station.robot.safety)
+    args.station = station
+    args.latch_file = station.robot_latch_file()
+    if not (args.sim or args.port):
+        args.port = station.robot.options.get("port")
+        if not args.port:
+            raise _BadOptionError(f"--config {args.config}: its [robot] options name no port; give --port")
+    return station.robot_safety()
+
+
+_NEEDS_CONFIG = frozenset({"to-reference", "acknowledge", "selftest"})
 
 
 _OPTION_OF_FIELD = {
@@ -232,6 +258,11 @@ def _check_positionals(args: argparse.Namespace) -> None:
 def _settings(args: argparse.Namespace) -> dict[str, Any]:
     """Every option value validated into the driver's settings before anything is opened."""
     _check_positionals(args)
+    if args.robot_command == "selftest":
+        unknown = sorted(set(args.checks.split(",")) - set(_cli_station.CHECK_NAMES))
+        if unknown:
+            names = ",".join(_cli_station.CHECK_NAMES)
+            raise _BadOptionError(f"--checks: unknown {unknown}; choose from {names}")
     if getattr(args, "calibration", None) is not None:
         from station.kinematics import Kinematics
 
@@ -310,7 +341,7 @@ def _supervise(robot: CrsA465, args: argparse.Namespace) -> int:
             return _EXIT_OF_SIGNAL[signal.Signals(received[0])]
         if failure:
             raise failure[0]
-        return 0
+        return int(getattr(args, "exit_code", 0))
     finally:
         for signum, handler in previous.items():
             signal.signal(signum, handler)
@@ -326,17 +357,26 @@ def handle(args: argparse.Namespace) -> int:
     twin: _Twin | None = None
     robot: CrsA465 | None = None
     try:
+        if args.sim and args.robot_command == "selftest":
+            robot, twin = _cli_station.open_sim_station(args)
+            return _supervise(robot, args)
         if args.sim:
             twin = config.build("controller", "sim", shell=args.shell, app_name=args.app_name)
             port = twin.port
         else:
             port = args.port
-        robot = build_robot(port, shell=args.shell, app_name=args.app_name, **settings)
+        robot = build_robot(
+            port, shell=args.shell, app_name=args.app_name, latch_file=args.latch_file, **settings
+        )
+        if args.robot_command == "acknowledge":  # no link needed: the latch is the station's
+            _cli_station.acknowledge(robot)
+            _out(json.dumps({"acknowledged": True}) if args.json else "the stop is acknowledged")
+            return 0
         return _supervise(robot, args)
     except DeviceError as exc:
         _err(str(exc))
         return 1
-    except (config.ConfigurationError, ValueError) as exc:
+    except (config.ConfigurationError, ValueError, RemoteAcknowledgementError) as exc:
         _err(str(exc))
         return 1
     finally:
@@ -371,7 +411,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg,
         " to-reference",
         description="Talk to a C500C controller: a real one, `station sim controller`, or any emulator.",
     )
-    target = parser.add_mutually_exclusive_group(required=True)
+    target = parser.add_mutually_exclusive_group(required=False)
     target.add_argument("--sim", action="store_true", help="start a fresh controller twin for this call")
     target.add_argument("--port", help="serial port or pyserial URL of the controller (e.g. /dev/ttyS0)")
     parser.add_argument("--baud", default=None, metavar="N", help="baud rate (default 57600)")
@@ -380,7 +420,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg,
         "--config",
         default=None,
         metavar="FILE",
-        help="station configuration (TOML): the reference pose and the cell's safety limits",
+        help="station configuration (TOML): the port, reference pose, the cell's safety limits, the camera's"
+        " mounting and the data directory (the stop latch)",
     )
     parser.add_argument(
         "--shell",
@@ -430,6 +471,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg,
         " is (--json: one object with reference_joints_deg, start, moves, via_lift, final_pose,"
         " at_reference).",
     )
+    _cli_station.add_parsers(commands)
     parser.set_defaults(func=handle)
 
 

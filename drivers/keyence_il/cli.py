@@ -2,6 +2,7 @@
 
     station zsensor (--sim | --port PORT [--baud N]) [--timeout S] [--json] read [--count N]
     station zsensor (--sim | --port PORT) [--json] status
+    station zsensor --config FILE [--json] read|status     (the configuration's [distance_sensor])
 
 ``read`` prints one distance (mm) per line, or ``{"ok": true, "z_mm": ...}`` with ``--json``; a reading
 the sensor cannot give prints ``{"ok": false, "error": ..., "code": "out_of_range" | "alarm"}`` (the
@@ -68,13 +69,25 @@ def handle(args: argparse.Namespace) -> int:
     twin: Any = None
     sensor: Any = None
     try:
+        options: dict[str, Any] = {}
+        if args.config is not None:
+            station = config.load_config(args.config)
+            if station.distance_sensor is None:
+                _err(f"--config {args.config}: no [distance_sensor] section")
+                return 2
+            options = dict(station.distance_sensor.options)
+            link = {**dict(options.pop("link", None) or {}), **link}
         if args.sim:
             twin = config.build("distance_sensor_twin", "sim")
             port = twin.port
         else:
-            port = args.port
+            port = args.port or options.pop("port", None)
+            if not port:
+                _err("give --sim, --port PORT, or --config FILE whose [distance_sensor] names the port")
+                return 2
+        options.pop("port", None)
         try:
-            sensor = open_distance_sensor(port, link=link, baudrate=args.baud)
+            sensor = open_distance_sensor(port, link=link, baudrate=args.baud, **options)
         except ValidationError as exc:
             _err(f"bad option: {problems(exc, 'settings')}")
             return 2
@@ -104,7 +117,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg,
         help="Z distance sensor (Keyence IL via DL-RS1A): read, status",
         description="Read the Z distance sensor: a real DL-RS1A on a serial port, or a fresh twin.",
     )
-    target = parser.add_mutually_exclusive_group(required=True)
+    target = parser.add_mutually_exclusive_group(required=False)
     target.add_argument("--sim", action="store_true", help="start a fresh sensor twin for this call")
     target.add_argument("--port", help="serial port or pyserial URL of the DL-RS1A (e.g. /dev/ttyUSB0)")
     parser.add_argument("--baud", type=int, default=None, metavar="N", help="baud rate (default 38400)")
@@ -112,6 +125,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg,
         "--timeout", type=float, default=None, metavar="S", help="reply timeout (default 1 s)"
     )
     parser.add_argument("--json", action="store_true", help="print JSON, one object per line")
+    parser.add_argument(
+        "--config", metavar="FILE", help="station configuration: its [distance_sensor] (port, head, link)"
+    )
     commands = parser.add_subparsers(dest="zsensor_command", required=True, metavar="COMMAND")
     read = commands.add_parser("read", help="read distances (mm)")
     read.add_argument("--count", type=_count, default=1, metavar="N", help="how many readings (default 1)")

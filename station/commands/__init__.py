@@ -29,6 +29,7 @@ CORE_COMMANDS: dict[str, str] = {
     "import": "sessions",
     "calibrate": "calibrate",
     "scale-calibration": "scale_calibration",
+    "teach": "teach",
 }
 
 

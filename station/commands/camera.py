@@ -1,4 +1,7 @@
-"""``station camera (--sim | --v4l2 DEV | --aravis ID) grab OUT.png``: grab one frame to a file."""
+"""``station camera (--sim | --v4l2 DEV | --aravis ID | --config FILE) grab OUT.png``: grab one frame to a
+file; with ``--config`` the camera is the configuration's ``[camera]`` (driver and options), and its
+camera model, when it says the image size it holds for, must match the frames (else exit 1, saying
+what to do)."""
 
 from __future__ import annotations
 
@@ -10,6 +13,7 @@ import tempfile
 from typing import Any
 
 from station import config
+from station.camera_model import check_image_size, read_camera_model
 from station.commands import SubParsers
 from station.commands._common import bounded_int, finite_float
 from station.devices import Camera, DeviceError, ExposureAdjustable
@@ -26,6 +30,7 @@ def register(sub: SubParsers) -> None:
         description="Grab a frame and write it losslessly (PNG; 16-bit frames stay 16-bit).",
     )
     which = p.add_mutually_exclusive_group(required=True)
+    which.add_argument("--config", metavar="FILE", help="the station configuration's [camera]")
     which.add_argument("--sim", action="store_true", help="the simulated flange camera")
     which.add_argument("--v4l2", metavar="DEV", help="a V4L2 frame grabber: /dev/videoN or its index")
     which.add_argument("--aravis", metavar="ID", help="a GenICam camera: Aravis device id or IP address")
@@ -59,6 +64,12 @@ def register(sub: SubParsers) -> None:
 
 def _build(args: argparse.Namespace) -> Camera:
     options: dict[str, Any]
+    if args.config is not None:
+        station = config.load_config(args.config)
+        args.camera_model = station.camera.camera_model
+        camera_from_config: Camera = config.build("camera", station.camera.driver, **station.camera.options)
+        return camera_from_config
+    args.camera_model = None
     if args.sim:
         name, options = "sim", {}
     elif args.v4l2 is not None:
@@ -101,7 +112,14 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         except ImageFileError as exc:
             print(f"station camera: {_keep(frame.image, exc)}", file=sys.stderr)
             return 1
-    except (DeviceError, ImageFileError, ValueError) as exc:
+        if args.camera_model is not None:  # the configuration's model must hold for these frames
+            height, width = frame.image.shape[:2]
+            try:
+                check_image_size(read_camera_model(args.camera_model), width, height, require_size=False)
+            except ValueError as exc:
+                print(f"station camera: the frame is in {path}, but {exc}", file=sys.stderr)
+                return 1
+    except (DeviceError, ImageFileError, ValueError, config.ConfigurationError) as exc:
         print(f"station camera: {exc}", file=sys.stderr)
         return 1
     finally:

@@ -1,4 +1,6 @@
-"""``station table (--sim | --manual) move X_MM Y_MM``: move the X-Y table through an operator prompt."""
+"""``station table (--sim | --manual) [--config FILE] move X_MM Y_MM``: move the X-Y table through an
+operator prompt. With ``--config`` the table is the configuration's ``[table]`` (its driver and options:
+travel and origin), so that a target outside the cell's travel is refused before anyone is asked."""
 
 from __future__ import annotations
 
@@ -32,6 +34,7 @@ def register(sub: SubParsers) -> None:
         help="give up after this many seconds (a finite number above 0)",
     )
     p.add_argument("--json", action="store_true", help="print the confirmed position as JSON")
+    p.add_argument("--config", metavar="FILE", help="station configuration: its [table] (travel, origin)")
     tsub = p.add_subparsers(dest="table_command", required=True, metavar="COMMAND")
     move = tsub.add_parser("move", help="move to X_MM Y_MM")
     move.add_argument("x_mm", type=finite_float("X_MM"), metavar="X_MM")
@@ -68,7 +71,13 @@ def run(args: argparse.Namespace, parser: argparse.ArgumentParser | None = None)
             helper = threading.Thread(target=client.serve, args=(stop,), daemon=True)
             helper.start()
         broker.subscribe(show)
-        table = config.build("table", "manual", broker=broker)
+        driver, options = "manual", {}
+        if args.config is not None:
+            station = config.load_config(args.config)
+            if station.table is None:
+                raise config.ConfigurationError(f"--config {args.config}: no [table] section")
+            driver, options = station.table.driver, dict(station.table.options)
+        table = config.build("table", driver, broker=broker, **options)
         position = table.move_to(args.x_mm, args.y_mm, timeout_s=args.timeout)
     except (DeviceError, ValueError) as exc:
         print(f"station table: {exc}", file=sys.stderr)

@@ -43,10 +43,13 @@ from station.devices import (
     RobotPosition,
     RobotStatus,
     SensorAlarmError,
+    StopLatchedError,
     TablePosition,
     grab_frames,
 )
+from station.local_ack import ACKNOWLEDGE_HINT, LocalAcknowledgement, RemoteAcknowledgementError
 from station.prompts import PromptBroker
+from station.speed_cap import check_speed
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -130,6 +133,7 @@ class FakeRobot(_FakeDevice):
         move_time_s: float = 0.0,
         powered: bool = True,
         homed: bool = True,
+        max_speed_pct: float = 100.0,
     ) -> None:
         super().__init__()
         self.joints = np.array(start_deg, dtype=np.float64)
@@ -140,7 +144,8 @@ class FakeRobot(_FakeDevice):
         self.move_time_s = move_time_s
         self.powered = powered
         self.homed = homed
-        self.speed_pct = 100.0
+        self.speed_pct = min(100.0, max_speed_pct)
+        self.max_speed_pct = max_speed_pct
         self.stopped = False
         self._stop_event = threading.Event()
         self.listeners: list[Callable[[FloatArray], None]] = []
@@ -204,6 +209,7 @@ class FakeRobot(_FakeDevice):
         self._require()
         if not 1 <= percent <= 100:
             raise MotionRejectedError(f"speed {percent} % is outside 1-100 %")
+        self.check_speed(percent)
         self.speed_pct = float(percent)
 
     def stop(self) -> None:
@@ -212,9 +218,24 @@ class FakeRobot(_FakeDevice):
         self._stop_event.set()
 
     def clear_stop(self) -> None:
+        """As the driver: releases nothing; raises while a stop is latched."""
         self._call("clear_stop")
+        if self.stopped:
+            raise StopLatchedError(
+                f"a stop is latched: it is not cleared by starting again; {ACKNOWLEDGE_HINT}"
+            )
+
+    def acknowledge_stop(self, ack: LocalAcknowledgement) -> str | None:
+        self._call("acknowledge_stop", ack.source)
+        if not isinstance(ack, LocalAcknowledgement) or not ack.fresh():
+            raise RemoteAcknowledgementError("a stop is released only by a fresh local acknowledgement")
+        was = "stop()" if self.stopped else None
         self.stopped = False
         self._stop_event.clear()
+        return was
+
+    def check_speed(self, percent: float) -> None:
+        check_speed(percent, self.max_speed_pct)
 
     def wait_settled(self, timeout_s: float | None = None) -> None:
         self._call("wait_settled", timeout_s)
@@ -226,10 +247,10 @@ class FakeRobot(_FakeDevice):
     def _motion(self, target: FloatArray) -> None:
         self._require()
         if self.stopped:
-            raise MotionStoppedError("the robot is stopped (latched); call clear_stop() before moving again")
+            raise StopLatchedError(f"the robot is stopped (latched); {ACKNOWLEDGE_HINT}")
         self.check_move(target)
         if self.move_time_s and self._stop_event.wait(self.move_time_s):
-            raise MotionStoppedError("motion stopped by stop(); call clear_stop() before moving again")
+            raise MotionStoppedError(f"motion stopped by stop(); {ACKNOWLEDGE_HINT}")
         self.joints = target.copy()
         for listener in self.listeners:
             listener(self.joints)

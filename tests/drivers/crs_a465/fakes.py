@@ -249,12 +249,14 @@ def armstat(**kw: Any) -> Exchange:
     return say("armstat", *armstat_lines(**kw), prompt=prompt)
 
 
-def connect_exchanges(joints: Iterable[float] = READY, *, prompt: str = PROMPT) -> list[Exchange]:
+def connect_exchanges(
+    joints: Iterable[float] = READY, *, prompt: str = PROMPT, speed: int | None = None
+) -> list[Exchange]:
     """What ``connect()`` says: an empty line, speed, armstat, w2, w0."""
     q = list(joints)
     return [
         say("", prompt=prompt),
-        speed_report(prompt=prompt),
+        speed_report(prompt=prompt) if speed is None else speed_report(speed, prompt=prompt),
         armstat(prompt=prompt),
         w2(q, prompt=prompt),
         w0(q, prompt=prompt),

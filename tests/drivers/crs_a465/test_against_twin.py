@@ -25,10 +25,11 @@ from drivers.crs_a465 import (
 )
 from sim.controller import ControllerTwin
 from station import config
-from station.devices import DeviceBusyError, MotionStoppedError, Robot
+from station.devices import DeviceBusyError, MotionStoppedError, Robot, StopLatchedError
 from station.kinematics import Kinematics, world_row
 from tests.drivers.crs_a465.conftest import FAST_LINK, TWIN_MOTION
 from tests.drivers.crs_a465.fakes import READY
+from tests.local_ack import local_ack
 
 AWAY = (5.0, -3.0, 85.0, 2.0, 88.0, -4.0)
 
@@ -87,8 +88,8 @@ def test_repeated_returns_scatter_and_show_the_systematic_error(make_twin, robot
 def test_speed_home_and_ready(make_twin, robot_on, mode):
     twin = twin_in(make_twin, mode)
     robot = robot_on(twin)
-    robot.set_speed(80)
-    assert robot.status().speed_pct == 80.0
+    robot.set_speed(40)
+    assert robot.status().speed_pct == 40.0
     robot.home()
     assert robot.where().commanded_joints_deg == (0.0,) * 6
     robot.ready()
@@ -136,9 +137,12 @@ def test_application_shell_reports_power_and_homing(make_twin, robot_on, mode):
     status = robot.status()
     assert (status.power, status.homed) == (True, True)
     twin.set_power(False)
-    assert robot.status().power is False
-    with pytest.raises(ArmPowerOffError):
+    assert robot.status().power is False  # seen going off: an E-stop latches
+    with pytest.raises(StopLatchedError, match="power went off"):
         robot.move_joint(2, 1.0)
+    twin.set_power(True)
+    robot.acknowledge_stop(local_ack())
+    robot.move_joint(2, 1.0)
 
 
 def test_a_motion_returns_only_once_the_arm_has_arrived(make_twin, robot_on, mode):
@@ -207,18 +211,20 @@ def test_stop_halts_a_motion_in_progress_and_latches(make_twin, robot_on, mode):
     assert not mover.is_alive()
     assert len(outcome) == 1
     assert isinstance(outcome[0], MotionStoppedError)
-    assert "clear_stop()" in str(outcome[0])
+    assert "acknowledge" in str(outcome[0])
     assert twin.motion_log[-1].stopped
     assert not twin.arm.moving()
     reached = robot.where().commanded_joints_deg[0]
     assert 0.0 < reached < 30.0
     assert all(not any(ord(c) < 0x20 for c in line) for line in twin.received)  # no stray control byte
-    with pytest.raises(MotionStoppedError, match=r"clear_stop\(\)"):
+    with pytest.raises(MotionStoppedError, match="acknowledge"):
         robot.move_joint(1, 1.0)
     robot.connect()  # connecting again does not release the latch
     with pytest.raises(MotionStoppedError):
         robot.move_joint(1, 1.0)
-    robot.clear_stop()
+    with pytest.raises(MotionStoppedError, match="not cleared by starting again"):
+        robot.clear_stop()  # what a session's start calls
+    assert robot.acknowledge_stop(local_ack()) is not None  # a person at the station
     robot.move_joint(1, 1.0)
 
 

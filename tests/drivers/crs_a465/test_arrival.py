@@ -28,6 +28,7 @@ from tests.drivers.crs_a465.fakes import (
     w0,
     w2,
 )
+from tests.local_ack import local_ack
 
 TARGET = (1.0, 0.0, 90.0, 0.0, 90.0, 0.0)
 HALT = "/sbin/robotsrv: ^Z detected - halting robot..."
@@ -104,7 +105,7 @@ def test_the_next_move_starts_from_the_arrivals_w0_but_a_stop_forgets_it():
         robot.move_joint(1, 1.0)
         robot.move_joint(1, -1.0)
         robot.stop()
-        robot.clear_stop()
+        robot.acknowledge_stop(local_ack())
         robot.move_joint(1, 1.0)
 
 

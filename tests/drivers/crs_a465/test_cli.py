@@ -128,8 +128,8 @@ def test_usage_errors_exit_2(capsys):
     with pytest.raises(SystemExit) as info:
         main(["robot", "--sim", "joint", "9", "1"])
     assert info.value.code == 2
-    with pytest.raises(SystemExit):
-        main(["robot", "where"])  # neither --sim nor --port
+    assert main(["robot", "where"]) == 2  # neither --sim, --port nor --config: one line, nothing opened
+    assert "give --sim, --port PORT or --config FILE" in capsys.readouterr().err
 
 
 # ------------------------------------------------------------------ a stranger speaking the dialect

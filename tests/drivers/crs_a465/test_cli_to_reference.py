@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+import tomlkit
 
 from sim.controller import ControllerTwin
 from sim.station import sim_safety
@@ -27,20 +28,12 @@ def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
 def station_toml(path: Path, reference: tuple[float, ...], **safety: Any) -> Path:
     """The simulated cell's configuration: its reference pose and safety limits (``safety`` overrides)."""
     limits = {**sim_safety(World()), **safety}
-
-    def toml(v: Any) -> str:
-        return json.dumps(list(v)) if isinstance(v, tuple | list) else json.dumps(v)
-
-    lines = [
-        'name = "sim-cell"',
-        "[robot]",
-        'driver = "crs_a465"',
-        f"reference_joints_deg = {toml(reference)}",
-        "safety = { " + ", ".join(f"{k} = {toml(v)}" for k, v in limits.items()) + " }",
-        "[camera]",
-        'driver = "sim"',
-    ]
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    doc = {
+        "name": "sim-cell",
+        "robot": {"driver": "crs_a465", "reference_joints_deg": list(reference), "safety": limits},
+        "camera": {"driver": "sim"},
+    }
+    path.write_text(tomlkit.dumps(doc), encoding="utf-8")
     return path
 
 

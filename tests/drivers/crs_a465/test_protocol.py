@@ -18,6 +18,7 @@ from drivers.crs_a465 import (
     MotionSettings,
     NotHomedError,
     RaplExceptionError,
+    SafetyLimits,
     ServoError,
     ShellProfile,
     UnexpectedReplyError,
@@ -32,6 +33,7 @@ from station.devices import (
     MotionStoppedError,
     RobotStatus,
 )
+from station.speed_cap import SpeedCapError
 from tests.drivers.crs_a465.fakes import (
     FAST_MOTION,
     READY,
@@ -50,6 +52,7 @@ from tests.drivers.crs_a465.fakes import (
     w0,
     w2,
 )
+from tests.local_ack import local_ack
 
 HALT = "/sbin/robotsrv: ^Z detected - halting robot..."
 
@@ -254,9 +257,34 @@ def test_move_joints_fails_when_the_arm_stops_short_of_the_target():
 
 
 def test_set_speed_sends_the_percent_and_reads_it_back():
-    with scripted_robot([*connect_exchanges(), say("speed 80"), speed_report(80)]) as (robot, _):
+    with scripted_robot(
+        [*connect_exchanges(), say("speed 80"), speed_report(80)], safety=SafetyLimits(max_speed_pct=80)
+    ) as (robot, _):
         robot.connect()
         robot.set_speed(80)
+
+
+def test_a_speed_above_the_cap_is_refused_before_writing_and_says_where_the_cap_is_set():
+    with scripted_robot(connect_exchanges()) as (robot, port):  # the default cap: 50 %
+        robot.connect()
+        written = bytes(port.written)
+        with pytest.raises(
+            SpeedCapError, match=r"80 % refused: the station's speed cap is 50 % \(max_speed_pct"
+        ):
+            robot.set_speed(80)
+        with pytest.raises(SpeedCapError):
+            robot.check_speed(51)
+        robot.check_speed(50)
+        assert bytes(port.written) == written
+
+
+def test_no_motion_at_a_controller_speed_above_the_cap():
+    """The pendant left the override at 80 %: every motion is refused until it is set within the cap."""
+    with scripted_robot([*connect_exchanges(speed=80), w0()]) as (robot, port):
+        robot.connect()
+        with pytest.raises(SpeedCapError, match="speed override is 80 %, above the station's cap of 50 %"):
+            robot.move_joint(1, 1.0)
+        assert not port.written.endswith(b"joint 1 1.000\r")
 
 
 @pytest.mark.parametrize("bad", [0, 101, 12.5, float("nan")])
@@ -275,6 +303,7 @@ def test_home_and_ready_wait_for_arrival_and_armstat_done():
     with scripted_robot(
         [
             *connect_exchanges(),
+            w0(),  # home's path is checked from where the arm is
             say("home", *HOME_LINES),
             *still_polls(home),
             armstat(),
@@ -434,14 +463,16 @@ def test_stop_while_idle_sends_ctrl_z_resyncs_rereads_and_latches():
         assert robot.stopped
         assert robot.last_position is not None
         written = bytes(port.written)
-        with pytest.raises(MotionStoppedError, match=r"clear_stop\(\)"):
+        with pytest.raises(MotionStoppedError, match="acknowledge the stop at the station"):
             robot.move_joint(1, 1.0)
-        with pytest.raises(MotionStoppedError, match=r"clear_stop\(\)"):
+        with pytest.raises(MotionStoppedError, match="acknowledge the stop at the station"):
             robot.ready()
-        with pytest.raises(MotionStoppedError, match=r"clear_stop\(\)"):
+        with pytest.raises(MotionStoppedError, match="acknowledge the stop at the station"):
             robot.home()
+        with pytest.raises(MotionStoppedError, match="not cleared by starting again"):
+            robot.clear_stop()
         assert bytes(port.written) == written  # nothing sent while latched
-        robot.clear_stop()
+        robot.acknowledge_stop(local_ack())
         robot.move_joint(1, 1.0)
 
 

@@ -1,0 +1,272 @@
+"""Teaching with the devices: the readings a taught value needs, taken from the robot, the camera and the
+distance sensor directly (as the manual tools do), and the value computed (``_maths``).
+
+Every motion is a small move through the nominal model (``station.jog``), checked on the robot (limits,
+step, keep-out along the path, speed cap) before it is sent, at the jog speed. The arm is left where
+the taught value was read: at the reference pose, at the square pose over the artifact, or back where
+the sensor mount's heights started.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from station.camera_model import CameraIntrinsics, read_camera_model
+from station.config import StationConfig, StationDevices
+from station.devices import Camera, DistanceSensor, Robot
+from station.jog import JOG_SPEED_PCT, camera_jog_target, camera_offset_target
+from station.kinematics import Kinematics
+from station.teach._maths import (
+    Plane,
+    SensorOffsetFit,
+    TeachError,
+    crossing_on_plane,
+    fit_plane,
+    fit_sensor_offset,
+    pose_to_see,
+    sensor_point,
+    square_turn_deg,
+)
+from station.vision import MeasureParams, measure
+
+__all__ = [
+    "SENSOR_HEIGHTS_MM",
+    "TaughtArtifact",
+    "TaughtReference",
+    "TeachRig",
+    "camera_intrinsics",
+    "rig_for",
+    "teach_artifact",
+    "teach_reference",
+    "teach_sensor_mount",
+]
+
+log = logging.getLogger(__name__)
+FloatArray = npt.NDArray[np.float64]
+
+SENSOR_HEIGHTS_MM = (-1.5, -0.75, 0.0, 0.75, 1.5)
+"""Camera moves along the optical axis (+ toward the artifact) at which ``teach_sensor_mount`` reads."""
+PLANE_SPREAD_MM = 15.0
+"""The sensor reads the artifact's plane at four points this far along the camera's x and y from the
+point the camera looks at (off both grooves, around the crossing: the plane is not extrapolated)."""
+
+
+@dataclass
+class TeachRig:
+    """What teaching reads and moves: the devices (connected), the nominal model (``nominal``: the arm's
+    nominal kinematics with the camera's mounting as its tool), the camera model, the sensor's mount in
+    the camera frame (4x4), the working distance, and the jog speed."""
+
+    robot: Robot
+    camera: Camera
+    sensor: DistanceSensor | None
+    nominal: Kinematics
+    intrinsics: CameraIntrinsics
+    sensor_mount: FloatArray | None
+    working_distance_mm: float
+    speed_pct: float = 10.0
+    readings: int = 5
+    measure_params: MeasureParams = field(default_factory=MeasureParams)
+
+    def joints(self) -> tuple[float, ...]:
+        return tuple(float(v) for v in self.robot.where().commanded_joints_deg)
+
+    def move(self, target: Sequence[float]) -> None:
+        """A checked move (limits, step, keep-out along the path) at the jog speed."""
+        self.robot.check_move(target)
+        self.robot.check_speed(self.speed_pct)
+        self.robot.set_speed(self.speed_pct)
+        self.robot.move_joints(target)
+
+    def reading_mm(self) -> float:
+        if self.sensor is None:
+            raise TeachError(
+                "teaching this needs the distance sensor ([distance_sensor] in the configuration)"
+            )
+        values = [self.sensor.read_mm() for _ in range(self.readings)]
+        return float(np.mean(values))
+
+    def crossing(self) -> tuple[tuple[float, float], float]:
+        """The measured crossing (px) and the rotation of the groove nearest the image's x (deg)."""
+        frame = self.camera.grab()
+        m = measure(frame.image, self.measure_params)
+        return (float(m.center_px[0]), float(m.center_px[1])), float(m.rotation_deg)
+
+    def plane(self) -> Plane:
+        """The artifact's plane from sensor readings at four points around the one the camera looks at
+        (the camera shifted in its own x and y so that the beam lands there; the arm comes back)."""
+        if self.sensor_mount is None:
+            raise TeachError("teaching a plane needs the distance sensor and its mount")
+        start = self.joints()
+        bx, by = float(self.sensor_mount[0, 3]), float(self.sensor_mount[1, 3])
+        points = []
+        try:
+            for a, b in ((1, 1), (1, -1), (-1, -1), (-1, 1)):
+                shift = (a * PLANE_SPREAD_MM - bx, b * PLANE_SPREAD_MM - by, 0.0)
+                q = camera_offset_target(start, self.nominal, shift)
+                self.move(q)
+                points.append(sensor_point(self.nominal.forward(q), self.sensor_mount, self.reading_mm()))
+        finally:
+            self.move(start)
+        return fit_plane(points)
+
+
+@dataclass(frozen=True)
+class TaughtReference:
+    """The reference pose (``joints_deg``), the crossing it sees (``center_px``) and the plane's fit."""
+
+    joints_deg: tuple[float, ...]
+    center_px: tuple[float, float]
+    crossing_mm: tuple[float, float, float]
+    plane_rms_mm: float
+
+
+@dataclass(frozen=True)
+class TaughtArtifact:
+    """An artifact as taught: its crossing (mm), upward normal, square turn (deg), the joints it was
+    read from (the square pose), and the plane's fit."""
+
+    position_mm: tuple[float, float, float]
+    normal: tuple[float, float, float]
+    turn_deg: float
+    joints_deg: tuple[float, ...]
+    center_px: tuple[float, float]
+    plane_rms_mm: float
+
+
+def _focus(rig: TeachRig, *, square: bool) -> None:
+    """Bring the camera to the working distance from the plane the sensor reads (squared to it with
+    ``square``) before the crossing is measured: a defocused view measures poorly."""
+    plane = rig.plane()
+    here = rig.nominal.forward(rig.joints())
+    on_axis = crossing_on_plane(here, rig.intrinsics.principal_point, rig.intrinsics, plane)
+    normal = plane.normal if square else None
+    target = pose_to_see(rig.joints(), rig.nominal, on_axis, rig.working_distance_mm, normal=normal)
+    rig.move(tuple(round(float(v), 3) for v in target))
+
+
+def _crossing_mm(rig: TeachRig, plane: Plane) -> tuple[FloatArray, tuple[float, float], float]:
+    center, rotation = rig.crossing()
+    point = crossing_on_plane(rig.nominal.forward(rig.joints()), center, rig.intrinsics, plane)
+    return point, center, rotation
+
+
+def teach_reference(rig: TeachRig, *, rounds: int = 2) -> TaughtReference:
+    """The pose that sees the table's crossing on the principal point at the working distance, with the
+    camera's orientation as the operator jogged it: focused by the sensor, measured, moved there,
+    measured again (``rounds``)."""
+    _focus(rig, square=False)
+    for _ in range(rounds):
+        plane = rig.plane()
+        point, _, _ = _crossing_mm(rig, plane)
+        rig.move(
+            tuple(
+                round(float(v), 3)
+                for v in pose_to_see(rig.joints(), rig.nominal, point, rig.working_distance_mm)
+            )
+        )
+    plane = rig.plane()
+    point, center, _ = _crossing_mm(rig, plane)
+    return TaughtReference(
+        rig.joints(), center, (float(point[0]), float(point[1]), float(point[2])), plane.rms_mm
+    )
+
+
+def teach_artifact(rig: TeachRig, *, rounds: int = 2) -> TaughtArtifact:
+    """An artifact under the camera (its crossing in view): its plane from the sensor, the camera squared
+    to it with the crossing centred at the working distance (``rounds`` times), then its crossing, normal
+    and square turn read there."""
+    _focus(rig, square=True)
+    for _ in range(rounds):
+        plane = rig.plane()
+        point, _, _ = _crossing_mm(rig, plane)
+        target = pose_to_see(rig.joints(), rig.nominal, point, rig.working_distance_mm, normal=plane.normal)
+        rig.move(tuple(round(float(v), 3) for v in target))
+    plane = rig.plane()
+    point, center, rotation = _crossing_mm(rig, plane)
+    pose = rig.nominal.forward(rig.joints())
+    turn = square_turn_deg(pose, center, rotation, rig.intrinsics, plane)
+    n = plane.normal
+    return TaughtArtifact(
+        (float(point[0]), float(point[1]), float(point[2])),
+        (float(n[0]), float(n[1]), float(n[2])),
+        turn,
+        rig.joints(),
+        center,
+        plane.rms_mm,
+    )
+
+
+def teach_sensor_mount(
+    rig: TeachRig, *, heights_mm: Sequence[float] = SENSOR_HEIGHTS_MM
+) -> tuple[SensorOffsetFit, list[tuple[float, float]]]:
+    """The sensor mount's offset along the optical axis, from readings at known camera heights.
+
+    The camera must be square to a flat surface with it in focus, i.e. at the working distance (the
+    reference pose over the table's artifact, jogged until the crossing is sharp): the camera is moved
+    along its optical axis by ``heights_mm`` (through the nominal model), the sensor read at each, and
+    the arm brought back. Returns the fit and the (distance, reading) pairs.
+    """
+    if rig.sensor_mount is None:
+        raise TeachError("teaching the sensor's mount needs the distance sensor")
+    start = rig.joints()
+    pairs: list[tuple[float, float]] = []
+    try:
+        for h in heights_mm:
+            q = camera_jog_target(start, rig.nominal, "z", h) if h else start
+            rig.move(q)
+            pairs.append((rig.working_distance_mm - h, rig.reading_mm()))
+    finally:
+        rig.move(start)
+    fit = fit_sensor_offset([d for d, _ in pairs], [r for _, r in pairs], rig.sensor_mount)
+    return fit, pairs
+
+
+def camera_intrinsics(config: StationConfig, camera: Camera) -> CameraIntrinsics:
+    """The station's camera model: ``[camera] camera_model``, else the nominal pinhole from
+    ``[calibration]`` ``working_distance_mm`` and ``pixel_mm`` with the principal point at the centre of
+    the camera's frame (one frame is grabbed for its size)."""
+    if config.camera.camera_model is not None:
+        return read_camera_model(config.camera.camera_model)
+    if config.calibration is None:
+        raise TeachError(
+            "no camera model: set [camera] camera_model, or [calibration] working_distance_mm and pixel_mm"
+            " (the optics' nominal values)"
+        )
+    height, width = camera.grab().image.shape[:2]
+    f = config.calibration.working_distance_mm / config.calibration.pixel_mm
+    K = np.array([[f, 0.0, (width - 1) / 2.0], [0.0, f, (height - 1) / 2.0], [0.0, 0.0, 1.0]])
+    return CameraIntrinsics(K, np.zeros(5), (width, height))
+
+
+def rig_for(devices: StationDevices, *, speed_pct: float | None = None) -> TeachRig:
+    """The rig of a station's devices (connected) and configuration: the nominal model with ``[camera]
+    mount``, the camera model (``[camera] camera_model``, else the nominal pinhole from ``[calibration]``
+    ``working_distance_mm`` and ``pixel_mm`` with the principal point at the frame's centre), the sensor's
+    mount, and the jog speed (``[robot] safety.jog_speed_pct``, default 10 %)."""
+    config = devices.config
+    if devices.robot is None:
+        raise TeachError("teaching needs the robot ([robot] in the configuration)")
+    if config.calibration is None:
+        raise TeachError(
+            "teaching needs [calibration] working_distance_mm and pixel_mm (the optics' nominal values)"
+        )
+    wd = config.calibration.working_distance_mm
+    intrinsics = camera_intrinsics(config, devices.camera)
+    safety = config.robot.safety if config.robot is not None else {}
+    speed = float(safety.get("jog_speed_pct", JOG_SPEED_PCT)) if speed_pct is None else speed_pct
+    return TeachRig(
+        robot=devices.robot,
+        camera=devices.camera,
+        sensor=devices.distance_sensor,
+        nominal=Kinematics(tool=config.camera_mount().matrix()),
+        intrinsics=intrinsics,
+        sensor_mount=devices.distance_sensor_mount,
+        working_distance_mm=wd,
+        speed_pct=speed,
+    )
