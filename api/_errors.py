@@ -21,8 +21,9 @@ from starlette.routing import Match
 from api._service import ConflictError, ImportArchiveError, NotAvailableError, WorkerError
 from station.arm_route import RouteRejectedError
 from station.config import ConfigurationError
-from station.devices import DeviceError, MotionRejectedError
+from station.devices import DeviceError, MotionRejectedError, StopLatchedError
 from station.imageio import ImageFileError
+from station.local_ack import RemoteAcknowledgementError
 from station.plans import PlanError
 from station.prompts import InvalidAnswerError, PromptBusyError, PromptError, UnknownPromptError
 from station.record import (
@@ -63,6 +64,8 @@ STATUS_OF: tuple[tuple[type[Exception], int, str], ...] = (
     (ConfigurationError, 422, "configuration_error"),
     (RecordError, 422, "record_error"),
     (RouteRejectedError, 422, "route_rejected"),
+    (RemoteAcknowledgementError, 403, "remote_acknowledgement"),
+    (StopLatchedError, 409, "stop_latched"),
     (MotionRejectedError, 422, "motion_rejected"),
     (DeviceError, 502, "device_error"),
 )

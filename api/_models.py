@@ -38,10 +38,14 @@ class Health(BaseModel):
 
 class AccessModel(BaseModel):
     """What the client may do: ``authenticated`` (it sent the station's token, or the login cookie) and
-    ``open_reads`` (reads need no token)."""
+    ``open_reads`` (reads need no token), ``local`` (it runs on the station itself)."""
 
     authenticated: bool
     open_reads: bool
+    local: bool = Field(
+        description="whether the request comes from the station itself (a loopback peer): only such a"
+        " client may acknowledge a latched stop"
+    )
 
 
 class PlanModel(BaseModel):

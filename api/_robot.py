@@ -29,7 +29,15 @@ log = logging.getLogger(__name__)
 
 MAX_AGE_S = 10.0
 """The oldest read shown while no session runs; an older one starts a new read."""
-SHOWN = ("power", "homed", "joints_deg", "commanded_joints_deg", "reference_joints_deg", "at_reference")
+SHOWN = (
+    "power",
+    "homed",
+    "latched",
+    "joints_deg",
+    "commanded_joints_deg",
+    "reference_joints_deg",
+    "at_reference",
+)
 """The keys of a read that ``/station`` shows (besides ``state``, ``read_at`` and ``error``)."""
 
 Reader = Callable[[], dict[str, Any] | None]
@@ -118,7 +126,7 @@ class RobotMirror:
         elif error is not None:
             state = "unreachable"
             # the pose read before is not where the arm is now
-            doc.update(power=None, homed=None, joints_deg=None, commanded_joints_deg=None)
+            doc.update(power=None, homed=None, latched=None, joints_deg=None, commanded_joints_deg=None)
         else:
             state = "idle"
         if in_use or error is not None:

@@ -9,8 +9,9 @@ from typing import Any
 from fastapi import APIRouter, Depends, Request
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import Response
+from pydantic import BaseModel
 
-from api._auth import Access, read_access, require_token
+from api._auth import Access, is_loopback, read_access, require_token
 from api._deps import service_of
 from api._errors import ApiError
 from api._gate import DecodeGate
@@ -39,7 +40,10 @@ async def access(request: Request) -> AccessModel:
     open without it: the page says it is read-only, or that it needs the login URL, before anything fails."""
     granted: Access = request.app.state.access
     token, _ = granted.presented(request)
-    return AccessModel(authenticated=granted.matches(token), open_reads=granted.public_read)
+    peer = request.client.host if request.client is not None else ""
+    return AccessModel(
+        authenticated=granted.matches(token), open_reads=granted.public_read, local=is_loopback(peer)
+    )
 
 
 @router.get(
@@ -102,6 +106,36 @@ async def to_reference(request: Request) -> Response:
     the arm's commanded position before the first is sent; answers once it has arrived, with the
     ``moves`` sent and the ``final_pose``."""
     return rendered(await run_in_threadpool(service_of(request).to_reference))
+
+
+class AcknowledgedModel(BaseModel):
+    """``acknowledged``: whether a stop was latched (and is released now); ``reason``: what latched it."""
+
+    acknowledged: bool
+    reason: str | None
+
+
+@router.post(
+    "/station/robot/acknowledge",
+    response_model=AcknowledgedModel,
+    dependencies=[Depends(require_token)],
+    responses=problems(
+        401,
+        502,
+        503,
+        s403="not from the station itself (``remote_acknowledgement``), or a cookie request from another"
+        " page",
+        s409="a session runs (or the arm is on its way)",
+    ),
+)
+async def acknowledge(request: Request) -> AcknowledgedModel:
+    """Release the robot's stop latch (set by a stop, an abort, an E-stop or a controller error) for a
+    person at the station: only from the station itself (the connection's peer a loopback address: the
+    page opened on the station, or a script run there), never from another machine, whatever token it
+    holds; ``station robot --config F acknowledge`` at the station's terminal does the same."""
+    peer = request.client.host if request.client is not None else None
+    done = await run_in_threadpool(service_of(request).acknowledge_stop, peer)
+    return AcknowledgedModel.model_validate(done)
 
 
 def require_type(request: Request, accepted: tuple[str, ...]) -> None:

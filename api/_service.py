@@ -419,6 +419,15 @@ class StationService:
             self.robot_state.read()
         return done
 
+    def acknowledge_stop(self, peer_host: str | None) -> dict[str, Any]:
+        """Release the robot's stop latch for a person at the station (``peer_host``, the connection's
+        peer, must be loopback: RemoteAcknowledgementError otherwise, nothing released); ConflictError
+        while a session owns the arm. ``{"acknowledged", "reason"}``; ``/station`` shows it read again."""
+        done: dict[str, Any] = self.worker.call("acknowledge_stop", peer_host)
+        with contextlib.suppress(Exception):  # the read's failure is the robot's state in ``/station``
+            self.robot_state.read()
+        return done
+
     # ------------------------------------------------------------------ sessions
 
     def create_session(

@@ -42,6 +42,7 @@ MAX_AGE_S = 120.0
 ACKNOWLEDGE_HINT = (
     "look at the arm and the cell, then acknowledge the stop at the station: `station robot --port PORT"
     " --config FILE acknowledge` at its own terminal, or the operator page opened on the station itself"
+    " (its Robot panel: POST /api/v1/station/robot/acknowledge from the station)"
 )
 """What to do about a latched stop (refusals end with it)."""
 

@@ -66,6 +66,7 @@ from station.devices import (
     OperatorCancelledError,
     OutOfRangeError,
     SensorAlarmError,
+    StopLatchedError,
 )
 from station.plans import (
     Align,
@@ -643,8 +644,6 @@ class SessionRunner:
                 continue
             device.connect()
             stack.callback(self._close, name, device)
-        if devices.robot is not None:
-            devices.robot.clear_stop()
         self._event("connected", {"devices": devices.identities()})
 
     def _close(self, name: str, device: Any) -> None:
@@ -698,6 +697,10 @@ class SessionRunner:
         uses_table = any(isinstance(a, MoveTable) for s in steps for a in s.actions)
         start: tuple[float, ...] | None = None
         if robot is not None and uses_robot:
+            try:
+                robot.clear_stop()  # releases nothing: a latched stop is a problem, acknowledged locally
+            except StopLatchedError as exc:
+                problems.append(str(exc))
             try:
                 status = robot.status()
                 if status.power is False:

@@ -46,6 +46,7 @@ from pathlib import Path
 from typing import Any
 
 from station.compute import ComputeSpec, open_backend
+from station.devices import StopLatchedError
 from station.plans import get_plan, parse_params
 from station.prompts import Prompt, PromptAnswer, PromptBroker, PromptEvent
 from station.record import (
@@ -179,6 +180,16 @@ class _Pipe:
 
 
 # --------------------------------------------------------------------------- the worker's side
+
+
+def latch_reason(robot: Any) -> str | None:
+    """What latched the robot's stop (``None``: not latched), asked through the interface: ``clear_stop``
+    releases nothing and raises StopLatchedError, with the reason, while a stop is latched."""
+    try:
+        robot.clear_stop()
+    except StopLatchedError as exc:
+        return exc.reason or str(exc)
+    return None
 
 
 class SessionHost:
@@ -555,6 +566,7 @@ class SessionHost:
             robot.connect()
             try:
                 status, identity = robot.status(), robot.identity()
+                latched = latch_reason(robot)
                 if reference is not None:
                     arm = robot_status(robot, reference, self._max_step())
                     position = arm.position
@@ -572,9 +584,28 @@ class SessionHost:
             "identity": asdict(identity),
             "power": status.power,
             "homed": status.homed,
+            "latched": latched,
             **position.model_dump(mode="json"),
             **against,
         }
+
+    def rpc_acknowledge_stop(self, peer_host: str | None) -> dict[str, Any]:
+        """Release the robot's stop latch for a person at the station: the request came from ``peer_host``
+        (the connection's peer address), which must be loopback (RemoteAcknowledgementError otherwise:
+        nothing released). ``{"acknowledged": whether a stop was latched, "reason": what latched it}``."""
+        from station.local_ack import LocalAcknowledgement
+
+        ack = LocalAcknowledgement.from_loopback(peer_host)
+        with self._lock:
+            robot = self._idle_robot("acknowledge its stop")
+            if robot is None:
+                raise NotAvailableError("this station has no robot: there is no stop to acknowledge")
+            robot.connect()
+            try:
+                reason = robot.acknowledge_stop(ack)
+            finally:
+                robot.close()
+        return {"acknowledged": reason is not None, "reason": reason}
 
     def rpc_to_reference(self) -> dict[str, Any]:
         """Take the arm to the station's reference pose along its route (``station.arm_route``), every move

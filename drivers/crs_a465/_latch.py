@@ -32,12 +32,36 @@ class StopLatch:
         self.reason: str | None = None
         self.file = None if latch_file is None else Path(latch_file)
         self._used: set[str] = set()
+        self._on_file = False  # whether the file holds this latch (written or read by this process)
         if self.file is not None:
             found = self._read()
             if found is not None:
                 self.event.set()
                 self.reason = found
+                self._on_file = True
                 log.warning("the robot's stop is still latched (%s): %s", self.file, found)
+
+    def sync(self) -> None:
+        """Follow the latch file, which other processes of this station share (called on every connect).
+
+        A latch this process keeps in the file, whose file is gone, was acknowledged by another process
+        at the station (``station robot --config F acknowledge`` at its terminal): released here too. A
+        file that appeared was latched by another process: latched here too. Without a file, nothing."""
+        if self.file is None:
+            return
+        found = self._read()
+        if found is None and self.event.is_set() and self._on_file:
+            log.warning(
+                "the stop was acknowledged by another process at the station (its latch file is gone)"
+            )
+            self.reason = None
+            self._on_file = False
+            self.event.clear()
+        elif found is not None and not self.event.is_set():
+            log.warning("the robot's stop was latched by another process (%s): %s", self.file, found)
+            self.reason = found
+            self._on_file = True
+            self.event.set()
 
     def is_set(self) -> bool:
         return self.event.is_set()
@@ -75,6 +99,7 @@ class StopLatch:
                     " latched; check the data directory's permissions"
                 ) from exc
         self.reason = None
+        self._on_file = False
         self.event.clear()
         log.warning("stop acknowledged at the station (%s %s); it was: %s", ack.source, ack.who, reason)
         return reason
@@ -100,6 +125,7 @@ class StopLatch:
                 f.flush()
                 os.fsync(f.fileno())
             os.replace(tmp, self.file)
+            self._on_file = True
         except OSError as exc:  # the in-memory latch holds regardless
             log.error(
                 "the stop latch could not be written to %s: %s (it holds in this process)", self.file, exc

@@ -171,8 +171,11 @@ class _ShellLink:
         self.latch.set(reason)
 
     def connect(self) -> None:
-        """Open (or re-open) the link, find the prompt and re-read the arm state (a stop stays latched)."""
+        """Open (or re-open) the link, find the prompt and re-read the arm state (a stop stays latched;
+        one acknowledged or latched by another process of the station, through the latch file, is
+        followed)."""
         with self._lock:
+            self.latch.sync()
             self._transport.close()
             self._transport.open()
             self._dirty = True

@@ -127,3 +127,13 @@ def wait_state(client: httpx.Client, session_id: str, states: set[str]) -> dict[
         if doc["state"] in FINAL:
             raise AssertionError(f"session ended {doc['state']} ({doc['error']}) before reaching {states}")
         time.sleep(0.02)
+
+
+def acknowledge_stop(client: httpx.Client) -> dict[str, Any]:
+    """Release the robot's latched stop as the page on the station does (this test's client is loopback);
+    the reply says a stop was latched."""
+    r = client.post("/api/v1/station/robot/acknowledge")
+    assert r.status_code == 200, r.text
+    doc: dict[str, Any] = r.json()
+    assert doc["acknowledged"] is True, doc
+    return doc

@@ -16,7 +16,7 @@ import numpy as np
 from station.arm_route import travel
 from station.runner import PRELUDE_BASE
 from station.worker import SessionHost
-from tests.api.conftest import Served, ServeFactory, wait_final
+from tests.api.conftest import Served, ServeFactory, acknowledge_stop, wait_final
 
 REFERENCE = [0.0, 30.0, 60.0, 0.0, 90.0, 0.0]  # the simulated station's reference pose
 STEP_LIMIT = 27.0  # the sim's max_step_deg (30) less the route's 10 % margin
@@ -62,6 +62,8 @@ def abort_calibration_over_a_bench_artifact(served: Served, c: httpx.Client) -> 
     wait_over_the_first_artifact(served, sid)
     assert c.post(f"/api/v1/sessions/{sid}/actions", json={"action": "abort"}).status_code == 201
     assert wait_final(c, sid)["state"] == "aborted"
+    # the abort latched the robot's stop: a person at the station acknowledges it before anything moves
+    assert "stop" in acknowledge_stop(c)["reason"]
     return sid
 
 
@@ -136,6 +138,7 @@ def test_after_an_aborted_calibration_sessions_start_at_the_reference_and_to_ref
         wait_over_the_first_artifact(served, cal)
         assert c.post(f"/api/v1/sessions/{cal}/actions", json={"action": "abort"}).status_code == 201
         assert wait_final(c, cal)["state"] == "aborted"
+        acknowledge_stop(c)
         assert step_names(served, cal)[:2] == [
             "to the reference pose (through the lift pose)",
             "placement 1 turn -20 solution 0",

@@ -40,6 +40,15 @@ export function showRobot(s) {
   section.dataset.state = r.state;
   section.dataset.atReference = String(r.at_reference);
   $("robot-state").textContent = stateText(r, s);
+  const latched = typeof r.latched === "string" && r.latched !== "" && r.state === "idle";
+  $("latch").hidden = !latched;
+  section.dataset.latched = String(latched);
+  if (latched) {
+    $("latch-text").replaceChildren(
+      el("strong", {}, "A stop is latched: the arm moves for nothing until it is acknowledged. "),
+      `It was: ${r.latched}. Look at the arm and the cell first.`,
+    );
+  }
   const read = r.read_at ? ` (read ${clock(new Date(r.read_at))})` : "";
   const before = r.state === "in_session" || r.state === "busy" ? "before the session: " : "";
   $("robot-pose").textContent = r.commanded_joints_deg
@@ -50,7 +59,11 @@ export function showRobot(s) {
 
 export function updateRobotControls() {
   const r = page.station?.robot;
-  const show = Boolean(r && r.at_reference === false && !page.running && r.state === "idle");
+  const latched = Boolean(r && typeof r.latched === "string" && r.latched !== "");
+  const local = page.access?.local === true;
+  $("acknowledge").disabled = !(canAct() && local && !page.running);
+  $("latch-remote").hidden = local;
+  const show = Boolean(r && r.at_reference === false && !page.running && r.state === "idle" && !latched);
   $("to-reference").hidden = !show;
   $("to-reference").disabled = !(show && canAct());
   if (!show) $("to-reference-confirm").hidden = true;
@@ -122,8 +135,22 @@ async function toReference() {
   refresh();
 }
 
+async function acknowledge() {
+  $("acknowledge").disabled = true;
+  try {
+    const reply = await api("POST", "/station/robot/acknowledge");
+    $("robot-message").textContent = reply?.acknowledged
+      ? `stop acknowledged at the station (it was: ${reply.reason}); the arm may move again`
+      : "no stop was latched";
+  } catch (e) {
+    $("robot-message").textContent = `the stop is still latched: ${e.message}`;
+  }
+  refresh();
+}
+
 export function setUpStation(refreshFn) {
   refresh = refreshFn;
+  $("acknowledge").addEventListener("click", acknowledge);
   $("to-reference").addEventListener("click", offerRoute);
   $("to-reference-yes").addEventListener("click", toReference);
   $("to-reference-no").addEventListener("click", () => {

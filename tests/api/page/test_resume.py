@@ -48,6 +48,15 @@ def test_an_aborted_repeatability_is_resumed_from_the_page_and_continues_its_cou
     note = page.text_content("#control-note") or ""
     assert "Resume continues this session: it reruns the interrupted test from its start" in note
 
+    # the abort latched the robot's stop: the operator at the station acknowledges it in the Robot panel
+    page.wait_for_selector("#latch", state="visible")
+    assert "A stop is latched" in (page.text_content("#latch-text") or "")
+    page.wait_for_function("!document.querySelector('#acknowledge').disabled")
+    assert page.is_hidden("#latch-remote")  # this page runs on the station itself (loopback)
+    page.click("#acknowledge")
+    page.wait_for_selector("#latch", state="hidden")
+    assert "stop acknowledged at the station" in (page.text_content("#robot-message") or "")
+
     page.click("#resume")
     # the same session runs again, its count going on from where it stopped
     page.wait_for_function(

@@ -21,7 +21,7 @@ import httpx
 import pytest
 
 from api import Access, ServiceSettings, StationService
-from tests.api.conftest import TOKEN, Served, serve, wait_final, wait_state
+from tests.api.conftest import TOKEN, Served, acknowledge_stop, serve, wait_final, wait_state
 from tests.api.page.conftest import PATTERN, api, open_page
 from tests.api.test_to_reference import CALIBRATION, seen_artifact, wait_over_the_first_artifact
 
@@ -135,6 +135,7 @@ def test_partial_repeatability_tests_show_n_of_the_planned_cycles_and_stay_out_o
         wait_state(c, sid, {"paused"})
         assert c.post(f"/api/v1/sessions/{sid}/actions", json={"action": "abort"}).status_code == 201
         final = wait_final(c, sid)
+        acknowledge_stop(c)  # the abort latched the robot's stop; the next tests move the arm
     assert final["state"] == "aborted"
     results = final["results"]
     tests = results["tests"]
@@ -189,6 +190,13 @@ def test_after_an_aborted_calibration_the_page_offers_the_route_to_the_reference
     moves = arm["route"]["moves"]
     assert arm["route"]["via_lift"] is True
     assert arm["route"]["problems"] == []
+
+    # the abort latched the robot's stop: no route is offered until the operator acknowledges it
+    page.wait_for_selector("#latch", state="visible")
+    assert page.is_hidden("#to-reference")
+    page.wait_for_function("!document.querySelector('#acknowledge').disabled")
+    page.click("#acknowledge")
+    page.wait_for_selector("#latch", state="hidden")
 
     # offered as soon as the page reads the arm off its reference pose
     page.wait_for_selector("#to-reference", state="visible")

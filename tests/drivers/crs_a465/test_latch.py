@@ -70,6 +70,35 @@ def test_the_latch_outlives_the_process_in_its_latch_file(tmp_path: Path):
     assert not CrsA465("loop://", latch_file=latch).stopped
 
 
+def test_a_long_running_driver_follows_an_acknowledgement_made_by_another_process(make_twin, tmp_path: Path):
+    """The service's driver stays open across sessions: ``station robot --config F acknowledge`` at the
+    station's terminal (another process, another driver) releases it at its next connect; a stop that
+    other process latched reaches it the same way."""
+    twin = make_twin()
+    latch = tmp_path / "robot-stop-latch.json"
+    service = CrsA465(twin.port, latch_file=latch)
+    service.connect()
+    try:
+        service.stop()
+        assert service.stopped
+        terminal = CrsA465("loop://", latch_file=latch)  # the terminal's own process
+        assert terminal.stopped
+        terminal.acknowledge_stop(local_ack())
+        assert service.stopped  # until it reads the arm again
+        service.connect()
+        assert not service.stopped
+        service.move_joint(1, 1.0)  # moves again
+        assert [m.kind for m in twin.motion_log]
+
+        CrsA465("loop://", latch_file=latch).stop()  # latched elsewhere: followed too
+        service.connect()
+        assert service.stopped
+        with pytest.raises(StopLatchedError):
+            service.move_joint(1, -1.0)
+    finally:
+        service.close()
+
+
 def test_a_terminal_acknowledgement_needs_a_terminal_that_is_not_an_ssh_login():
     master, slave = os.openpty()
     try:
