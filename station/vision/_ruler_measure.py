@@ -87,11 +87,12 @@ def measure_ruler(
     first = plan(frame, period, p, gray.shape, full=False)
     quick = fold(gray, frame, first.strips, coords, step=FIRST_PASS_STEP)
     _, phases, correction = _phase_pass(gray, frame, first, quick, p, quick=True)
-    frame = _corrected(frame, correction, gray.shape)
+    pinhole = _pinhole(p, gray.shape)
+    frame = _corrected(frame, correction, gray.shape, pinhole)
     second = plan(frame, period, p, gray.shape, full=True)
     bins = fold(gray, frame, second.strips, coords)
     windows_used, phases, correction = _phase_pass(gray, frame, second, bins, p)
-    final = _corrected(frame, correction, gray.shape)
+    final = _corrected(frame, correction, gray.shape, pinhole)
     remap = _remap(correction)
     code_bins = second.rows(bins, second.code_rows)
     dark, bright = _levels(second, phases, code_bins, remap)
@@ -209,13 +210,25 @@ def _phase_pass(
     return int(present.sum()), kept, fit_correction(w, kept, perspective=perspective)
 
 
-def _corrected(frame: RulerFrame, correction: FrameCorrection, shape: tuple[int, int]) -> RulerFrame:
-    """The frame corrected, with ``t`` squared to ``s`` at the pattern's centre in view."""
+def _pinhole(p: RulerParams, shape: tuple[int, int]) -> FloatArray:
+    """The camera matrix of the frame's pixel coordinates: the model's, or the nominal focal length with
+    the principal point at the image's centre."""
+    if p.camera_matrix is not None:
+        return np.asarray(p.camera_matrix, dtype=np.float64)
+    cx, cy = (shape[1] - 1) / 2.0, (shape[0] - 1) / 2.0
+    return np.array([[p.focal_px, 0.0, cx], [0.0, p.focal_px, cy], [0.0, 0.0, 1.0]])
+
+
+def _corrected(
+    frame: RulerFrame, correction: FrameCorrection, shape: tuple[int, int], pinhole: FloatArray
+) -> RulerFrame:
+    """The frame corrected, with ``t`` square to ``s`` on the ruler's plane (through ``pinhole``) and
+    kept at the pattern's centre in view."""
     moved = frame.corrected(correction.e, correction.s_centre)
     x, y = moved.image_of(correction.s_centre, 0.0)
     if not (0 <= x < shape[1] and 0 <= y < shape[0]):
         x, y = (shape[1] - 1) / 2.0, (shape[0] - 1) / 2.0
-    return moved.squared(x, y)
+    return moved.squared_in_plane(pinhole, x, y)
 
 
 Remap = Callable[[FloatArray], FloatArray]
