@@ -40,7 +40,8 @@ def test_the_cell_has_rulers_in_two_directions_on_the_table_and_one_on_an_angle_
     assert len(frames) == len(DEFAULT_RULERS) == 3
     table_z = world.table_artifact_pose()[2, 3]
     level = [F for F in frames if abs(F[2, 2]) > 0.999999]
-    assert len(level) == 2 and all(abs(F[2, 3] - table_z) < 1e-9 for F in level)  # on the table's plane
+    assert len(level) == 2
+    assert all(abs(F[2, 3] - table_z) < 1e-9 for F in level)
     assert abs(level[0][:3, 0] @ level[1][:3, 0]) < 1e-9  # two directions, square to each other
     block = [F for F in frames if abs(F[2, 2]) <= 0.999999]
     assert len(block) == 1
@@ -75,7 +76,8 @@ def test_the_default_camera_is_exact_and_a_seeded_one_is_not() -> None:
     assert World().true_camera == WorldSpec().camera
     errors = [magnification_error(seed) for seed in range(50)]
     assert all(abs(e) <= 0.02 for e in errors)
-    assert max(errors) > 0.01 and min(errors) < -0.01  # spread over the range
+    assert max(errors) > 0.01
+    assert min(errors) < -0.01
     world = World(WorldSpec(magnification_seed=7))
     assert world.magnification_error == magnification_error(7) != 0.0
     assert world.true_camera.px_per_mm == pytest.approx(100.0 * (1.0 + magnification_error(7)))
