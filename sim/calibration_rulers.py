@@ -24,7 +24,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import numpy.typing as npt
 
-from sim._render_camera import CameraSpec
+from sim._render_camera import F4_DEFOCUS_PX_PER_MM, CameraSpec
 from sim.cell_rulers import DEFAULT_RULERS, RulerMount, on_substrate, ray_hit, ruler_view
 from sim.presets import get_preset
 from sim.ruler import render_ruler, ruler_truth
@@ -37,8 +37,8 @@ FloatArray = npt.NDArray[np.float64]
 TABLE_Z_MM = 328.9
 """The table's plane in the synthetic cell (the simulated world's, to 0.1 mm)."""
 
-DEFOCUS_PX_PER_MM = 3.1
-"""The blur's growth away from focus (``sim.world.WorldSpec.defocus_px_per_mm``: f/4)."""
+DEFOCUS_PX_PER_MM = F4_DEFOCUS_PX_PER_MM
+"""The blur's growth away from focus (``sim.world.WorldSpec.defocus_px_per_mm``'s default: f/4)."""
 
 
 @dataclass(frozen=True)
