@@ -9,15 +9,22 @@ placement the camera looks square at the crossing from the working distance, tur
 multiples of 90 deg +/- up to 30 deg, in every joint solution the IK finds (shoulder, elbow, wrist),
 with small in-view motions from each configuration. Noise: ``noise_mm`` on the crossing's position
 (as pixels) and on the sensor's reading.
+
+The true camera may differ from the nominal one the identification is given (``make_truth``'s
+``magnification_error``, ``sensor_z_error``), and the cell may have rulers (``sim.cell_rulers``), whose
+frames ``sim.calibration_rulers`` makes.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from sim.calibration_rulers import TABLE_Z_MM, taught_rulers, true_ruler_frames
+from sim.cell_rulers import RulerMount
 from sim.kinematic_errors import perturbed_dh
 from station.calibration import CalibrationSetup, CameraModel, Observation
 from station.kinematics import A465_DH, Kinematics, rot_x, rot_y, rot_z, transform
@@ -38,15 +45,34 @@ PLACEMENTS = {
 
 @dataclass
 class Truth:
-    """The true arm (camera as the tool) and each placement's crossing and plane normal (base frame)."""
+    """The true arm (camera as the tool), each placement's crossing and plane normal (base frame), the
+    true camera and sensor mount, and each ruler's true frame (4x4, base frame)."""
 
     kinematics: Kinematics  # the true arm, camera as the tool
     points: dict[int, np.ndarray]
     normals: dict[int, np.ndarray]
+    camera: CameraModel = CAMERA
+    mount: np.ndarray = field(default_factory=lambda: MOUNT.copy())
+    rulers: dict[int, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def px_per_mm(self) -> float:
+        """The true image scale where the captures are taken (the sensor reading the nominal distance)."""
+        return self.camera.focal_px / (CAMERA.working_distance_mm + float(self.mount[2, 3] - MOUNT[2, 3]))
 
 
-def make_truth(seed: int = 0, *, placements: dict[int, tuple[float, float, float]] = PLACEMENTS) -> Truth:
-    """A true arm (``perturbed_dh(seed)``), tool and artifacts (2 mm about ``placements``, 0.3 deg tilt)."""
+def make_truth(
+    seed: int = 0,
+    *,
+    placements: dict[int, tuple[float, float, float]] = PLACEMENTS,
+    rulers: Sequence[RulerMount] = (),
+    magnification_error: float = 0.0,
+    sensor_z_error: float = 0.0,
+) -> Truth:
+    """A true arm (``perturbed_dh(seed)``), tool and artifacts (2 mm about ``placements``, 0.3 deg tilt);
+    the rulers of ``rulers`` where ``true_ruler_frames(seed)`` puts them; the camera's true scale
+    ``1 + magnification_error`` times the nominal, its sensor ``sensor_z_error`` mm further along the
+    optical axis than the nominal mount says."""
     rng = np.random.default_rng(seed + 1000)
     dh = perturbed_dh(seed)
     tool_rot = rot_x(math.radians(rng.uniform(-0.3, 0.3))) @ rot_y(math.radians(rng.uniform(-0.3, 0.3)))
@@ -57,13 +83,32 @@ def make_truth(seed: int = 0, *, placements: dict[int, tuple[float, float, float
         points[k] = np.asarray(p, dtype=float) + rng.uniform(-2.0, 2.0, 3)  # the nominal is approximate
         tilt = rot_x(math.radians(rng.uniform(-0.3, 0.3))) @ rot_y(math.radians(rng.uniform(-0.3, 0.3)))
         normals[k] = tilt @ np.array([0.0, 0.0, 1.0])
-    return Truth(Kinematics(dh, tool=tool), points, normals)
+    mount = MOUNT.copy()
+    mount[2, 3] += sensor_z_error
+    scale = CAMERA.focal_px / CAMERA.working_distance_mm * (1.0 + magnification_error)
+    camera = CameraModel(
+        scale * (CAMERA.working_distance_mm + sensor_z_error),
+        CAMERA.principal_px,
+        CAMERA.width,
+        CAMERA.height,
+        CAMERA.working_distance_mm,
+    )
+    frames = true_ruler_frames(seed, rulers, table_z_mm=TABLE_Z_MM) if rulers else {}
+    return Truth(Kinematics(dh, tool=tool), points, normals, camera, mount, frames)
 
 
-def setup_for(placements: dict[int, tuple[float, float, float]] = PLACEMENTS) -> CalibrationSetup:
-    """The constants the identification is given: the sim's camera and mount, the nominal table and tool."""
+def setup_for(
+    placements: dict[int, tuple[float, float, float]] = PLACEMENTS, *, rulers: Sequence[RulerMount] = ()
+) -> CalibrationSetup:
+    """The constants the identification is given: the sim's camera and mount, the nominal table and tool,
+    the taught placements and rulers."""
     return CalibrationSetup(
-        camera=CAMERA, sensor_mount=MOUNT, nominal_tool=NOMINAL_TOOL, artifacts=placements, nominal_dh=A465_DH
+        camera=CAMERA,
+        sensor_mount=MOUNT,
+        nominal_tool=NOMINAL_TOOL,
+        artifacts=placements,
+        nominal_dh=A465_DH,
+        rulers=taught_rulers(rulers, table_z_mm=TABLE_Z_MM) if rulers else {},
     )
 
 
@@ -73,14 +118,14 @@ def observe(
     """The measured pixel of placement k's crossing and the sensor's reading at joints q, with noise."""
     C = truth.kinematics.tool_pose(q)
     pc = np.linalg.solve(C, np.append(truth.points[k], 1.0))[:3]
-    cam = CAMERA
+    cam = truth.camera
     u = cam.principal_px[0] + cam.focal_px * pc[0] / pc[2]
     v = cam.principal_px[1] + cam.focal_px * pc[1] / pc[2]
-    origin = C[:3, :3] @ MOUNT[:3, 3] + C[:3, 3]
-    beam = C[:3, :3] @ MOUNT[:3, 2]
+    origin = C[:3, :3] @ truth.mount[:3, 3] + C[:3, 3]
+    beam = C[:3, :3] @ truth.mount[:3, 2]
     n = truth.normals[k]
     z = float(n @ (truth.points[k] - origin) / (n @ beam))
-    noise_px = noise_mm / cam.mm_per_px
+    noise_px = noise_mm / CAMERA.mm_per_px
     u, v = u + rng.normal(0, noise_px), v + rng.normal(0, noise_px)
     return (float(u), float(v)), z + float(rng.normal(0, noise_mm))
 

@@ -82,11 +82,13 @@ def beam_hit(head_pose: FloatArray, artifact_pose: FloatArray) -> BeamHit:
 
 
 def world_source(world: World, mount: FloatArray) -> PoseSource:
-    """Head and artifact poses from the world's public truth: ``camera_pose() @ mount``."""
+    """Head and surface poses from the world's public truth: ``camera_pose() @ mount``, and what its beam
+    meets (``World.surface_pose``: a ruler's glass, else the artifact the camera sees)."""
     m = np.asarray(mount, dtype=np.float64)
 
     def poses() -> tuple[FloatArray, FloatArray]:
-        return world.camera_pose() @ m, world.artifact_pose()
+        head = world.camera_pose() @ m
+        return head, world.surface_pose(head)
 
     return poses
 

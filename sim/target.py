@@ -30,6 +30,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from sim._render_camera import F4_DEFOCUS_PX_PER_MM
 from sim._render_features import vignetting_map
 from sim._render_geometry import Float32Array, FloatArray, box_step, cutoff_px
 from sim.distance_sensor import HeadModel, beam_hit
@@ -47,14 +48,9 @@ __all__ = [
     "sensor_readout",
 ]
 
-F4_DEFOCUS_PX_PER_MM = 3.1
-"""The blur's growth for the seed's optics at f/4: a 1X macro lens (magnification m = 1, working f-number
-N (1 + m) = 8) spreads a point 1 mm from focus over a disc of 1 mm / 8 = 125 um on the sensor, 12.5 px at
-the grabber's 10 um/px; a uniform disc of diameter D has a standard deviation of D / 4 per axis: 3.1 px
-per mm."""
-
-WORLD_DEFOCUS_PX_PER_MM = 20.0
-"""``sim.world.WorldSpec.defocus_px_per_mm``'s default: an f/0.6 lens by the reckoning above."""
+WORLD_DEFOCUS_PX_PER_MM = F4_DEFOCUS_PX_PER_MM
+"""``sim.world.WorldSpec.defocus_px_per_mm``'s default: f/4 since issue 22 (it was 20 px/mm, an f/0.6
+lens, which does not exist)."""
 
 _UNDISTORT_TOL_PX = 1e-6
 _BLUR_LEVELS = np.array(

@@ -41,11 +41,17 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from sim._render_camera import F4_DEFOCUS_PX_PER_MM
 from sim._render_features import vignetting_map
+from sim._table import TableAxis, TableImperfections
+from sim._world_geometry import center_mm_of, euler_xyz, on_artifact
+from sim._world_rulers import render_ruler_view
 from sim.arm_errors import FlangeErrors, FlangeErrorSequence
 from sim.artifact import ArtifactSpec, CameraSpec, Pose, Truth, homography_for, render
+from sim.cell_rulers import DEFAULT_RULERS, RulerMount, on_substrate, ray_hit, seen_ruler
 from sim.kinematic_errors import perturbed_dh
 from sim.presets import NoisePreset, get_preset
+from sim.ruler import RulerTruth
 from station.kinematics import DHRow, Kinematics, rot_x, rot_z, transform
 
 FloatArray = npt.NDArray[np.float64]
@@ -53,19 +59,6 @@ INCH_MM = 25.4
 
 #: A reference pose of the arm with the camera looking straight down (flange z along -z of the base).
 REFERENCE_JOINTS_DEG: tuple[float, ...] = (0.0, 30.0, 60.0, 0.0, 90.0, 0.0)
-
-
-@dataclass(frozen=True)
-class TableImperfections:
-    """How the manual micrometer table differs from its readings (mm, deg)."""
-
-    skew_deg: float = 0.05
-    resolution_in: float = 0.0002
-    backlash_mm: float = 0.001
-
-    def __post_init__(self) -> None:
-        if self.resolution_in < 0 or self.backlash_mm < 0 or not math.isfinite(self.skew_deg):
-            raise ValueError("table resolution and backlash must be >= 0 and skew finite")
 
 
 @dataclass(frozen=True)
@@ -80,7 +73,9 @@ class WorldSpec:
     table_rotation_deg: float = 0.3
     artifact_rotation_deg: float = 2.0
     table: TableImperfections = field(default_factory=TableImperfections)
-    defocus_px_per_mm: float = 20.0
+    defocus_px_per_mm: float = F4_DEFOCUS_PX_PER_MM
+    """The blur's growth away from the focal plane, px (sigma) per mm: the seed's 1X macro lens at f/4
+    (``sim._render_camera.F4_DEFOCUS_PX_PER_MM``; 20 before issue 22, an f/0.6 lens)."""
     flange_errors: FlangeErrors = field(default_factory=FlangeErrors)
     bench_artifacts: tuple[tuple[float, float, float, float, float], ...] = (
         (350.0, 250.0, 380.0, 30.0, 20.0),
@@ -103,53 +98,24 @@ class WorldSpec:
     the optical axis, reads the plate while the camera looks at the crossing)."""
     background_dn: float = 60.0
     """Grey level of what lies around the artifacts (bench, table top; far out of focus), DN."""
+    rulers: tuple[RulerMount, ...] = DEFAULT_RULERS
+    """The rulers fixed in the cell (``sim.cell_rulers``): two on the table's plane, one on an angle block,
+    on the side of the cell opposite the X-Y table. The camera sees a ruler when its optical axis meets
+    the ruler's glass."""
+    magnification_seed: int | None = None
+    """None: the camera's true magnification is its nominal (``camera.px_per_mm``); a seed: the true
+    focal length (and so the scale at the focal plane) differs from the nominal by a factor drawn
+    uniformly within ``1 +/- magnification_range`` (:func:`magnification_error`), which the station,
+    trusting its nominal camera, does not know."""
+    magnification_range: float = 0.02
+    """Half-width of the seeded magnification error (relative)."""
 
 
-class TableAxis:
-    """One micrometer axis: the reading the operator sets, the carriage position it really gives.
-
-    The carriage follows the reading rounded to the micrometer's resolution, lagging by half the backlash
-    behind the last direction of travel.
-    """
-
-    def __init__(self, resolution_mm: float, backlash_mm: float) -> None:
-        self._resolution = resolution_mm
-        self._backlash = backlash_mm
-        self.reading_mm = 0.0
-        self.position_mm = 0.0
-        self._direction = 0.0
-
-    def set_reading(self, reading_mm: float) -> None:
-        if not math.isfinite(reading_mm):
-            raise ValueError(f"table reading must be finite, got {reading_mm!r}")
-        step = reading_mm - self.reading_mm
-        if step != 0.0:
-            self._direction = math.copysign(1.0, step)
-        self.reading_mm = reading_mm
-        settled = round(reading_mm / self._resolution) * self._resolution if self._resolution else reading_mm
-        self.position_mm = settled - self._direction * self._backlash / 2.0
-
-
-def center_mm_of(
-    homography: FloatArray, relative_to_px: tuple[float, float] = (0.0, 0.0)
-) -> tuple[float, float]:
-    """The crossing relative to the artifact point seen at pixel ``relative_to_px``, in artifact axes (mm).
-
-    From the artifact mm -> image px homography: minus that pixel's back-projection onto the artifact
-    plane. At the image origin (the default) it is ``center_mm`` as ``station.vision.measure`` defines it;
-    at the principal point, the tool point the repeatability plan measures.
-    """
-    px = np.array([relative_to_px[0], relative_to_px[1], 1.0])
-    point = np.linalg.solve(np.asarray(homography, dtype=float), px)
-    return -float(point[0] / point[2]), -float(point[1] / point[2])
-
-
-def euler_xyz(R: FloatArray) -> tuple[float, float, float]:
-    """Angles (deg) a, b, c with ``R = rot_x(a) @ rot_y(b) @ rot_z(c)`` (sim.artifact.Pose's order)."""
-    b = math.asin(max(-1.0, min(1.0, float(R[0, 2]))))
-    a = math.atan2(-float(R[1, 2]), float(R[2, 2]))
-    c = math.atan2(-float(R[0, 1]), float(R[0, 0]))
-    return math.degrees(a), math.degrees(b), math.degrees(c)
+def magnification_error(seed: int, magnification_range: float = 0.02) -> float:
+    """The camera's true magnification over its nominal, minus 1, for ``WorldSpec.magnification_seed``."""
+    if not (0.0 <= magnification_range < 0.5):
+        raise ValueError(f"magnification_range must be in [0, 0.5), got {magnification_range!r}")
+    return float(np.random.default_rng([0x3A6, seed]).uniform(-magnification_range, magnification_range))
 
 
 class World:
@@ -201,6 +167,16 @@ class World:
         )
         self.kinematics = Kinematics(self.true_dh, tool=tool)
         """The arm's true kinematics (camera as the tool): truth, for tests and benchmarks."""
+        lens_seed = self.spec.magnification_seed
+        self.magnification_error = (
+            0.0 if lens_seed is None else magnification_error(lens_seed, self.spec.magnification_range)
+        )
+        """The camera's true magnification over its nominal, minus 1: truth."""
+        self.true_camera = replace(
+            self.spec.camera, px_per_mm=self.spec.camera.px_per_mm * (1.0 + self.magnification_error)
+        )
+        """The camera as it really is (its focal length; the focal plane stays at the working distance):
+        what the world renders with. The station is told ``spec.camera``."""
         res_mm = self.spec.table.resolution_in * INCH_MM
         self._x = TableAxis(res_mm, self.spec.table.backlash_mm)
         self._y = TableAxis(res_mm, self.spec.table.backlash_mm)
@@ -229,6 +205,8 @@ class World:
             transform(rot_z(math.radians(yaw)) @ rot_x(math.radians(tilt)) @ flat, (x, y, z))
             for x, y, z, yaw, tilt in self.spec.bench_artifacts
         ]
+        self._rulers = [mount.frame(float(focus[2])) for mount in self.spec.rulers]  # on the table's plane
+        self._last_ruler: tuple[int, RulerTruth] | None = None
 
     # ------------------------------------------------------------------ arm and camera
 
@@ -288,6 +266,24 @@ class World:
     def artifact_poses(self) -> list[FloatArray]:
         """Every artifact's 4x4 frame in the base frame: the table's first, then the bench's (truth)."""
         return [self.table_artifact_pose(), *(T.copy() for T in self._bench)]
+
+    def ruler_poses(self) -> list[FloatArray]:
+        """Each ruler's 4x4 frame in the base frame (``sim.cell_rulers``; truth)."""
+        return [F.copy() for F in self._rulers]
+
+    def seen_ruler(self, camera_pose: FloatArray) -> int | None:
+        """Index (in :meth:`ruler_poses`) of the ruler whose glass the optical axis meets, or None."""
+        return seen_ruler(camera_pose, self._rulers)
+
+    def surface_pose(self, head_pose: FloatArray) -> FloatArray:
+        """What a beam from ``head_pose`` (4x4, along its +z) reads: a ruler's glass where the beam meets
+        one, as a plate frame centred where it meets it (normal into the glass), else the artifact the
+        camera sees (:meth:`artifact_pose`). Truth, for the distance sensor's twin."""
+        for F in self._rulers:
+            hit = ray_hit(head_pose[:3, 3], head_pose[:3, 2], F)
+            if hit is not None and on_substrate(hit[0], hit[1]):
+                return transform(F[:3, :3], F[:3, :3] @ np.array([hit[0], hit[1], 0.0]) + F[:3, 3])
+        return self.artifact_pose()
 
     def seen_artifact(self, camera_pose: FloatArray) -> int:
         """Index (in :meth:`artifact_poses`) of the artifact nearest the optical axis of a camera pose."""
@@ -352,7 +348,7 @@ class World:
         """
         cam = self.camera_pose_at(joints_deg, move=move)
         T = np.linalg.inv(cam) @ self.artifact_poses()[self.seen_artifact(cam)]
-        return center_mm_of(homography_for(self.pose(T), self.spec.camera), self._relative_px(tool_point))
+        return center_mm_of(homography_for(self.pose(T), self.true_camera), self._relative_px(tool_point))
 
     def center_mm(self, *, tool_point: bool = False) -> tuple[float, float]:
         """The true position now (see :meth:`center_mm_at`).
@@ -361,6 +357,12 @@ class World:
         """
         move = self.moves()
         return self.center_mm_at(tuple(self.joints_deg()), move=move, tool_point=tool_point)
+
+    def last_frame_ruler(self) -> tuple[int, RulerTruth] | None:
+        """The ruler (index in :meth:`ruler_poses`) and its truth in the last frame rendered; None before
+        the first frame and when the last frame saw no ruler."""
+        with self._lock:
+            return self._last_ruler
 
     def last_frame_center_mm(self, *, tool_point: bool = False) -> tuple[float, float] | None:
         """The true position (see :meth:`center_mm_at`) in the last frame rendered: a capture's truth.
@@ -389,30 +391,49 @@ class World:
     ) -> tuple[npt.NDArray[np.uint8], Truth | None]:
         """What the camera sees now, with the truth of that frame: a frame at every pose, as a camera gives.
 
-        The artifact nearest the optical axis where its plate is in view (what lies beyond the plate
-        replaced by the background); the background alone, with truth ``None``, where no plate is in view
-        or the one seen faces away from the camera or at a grazing angle (tilted 45 deg or more, beyond
-        the renderer's model; its image would be out of focus over most of the field anyway).
+        A ruler where the optical axis meets its glass (truth ``None`` for a crossing; the ruler's in
+        :meth:`last_frame_ruler`); else the artifact nearest the optical axis where its plate is in view
+        (what lies beyond the plate replaced by the background); the background alone, with truth
+        ``None``, where no plate is in view or the one seen faces away from the camera or at a grazing
+        angle (tilted 45 deg or more, beyond the renderer's model; its image would be out of focus over
+        most of the field anyway). All through the true camera (:attr:`true_camera`).
         """
         cam = self.camera_pose()
+        r = self.seen_ruler(cam)
+        if r is not None:
+            seen_r = render_ruler_view(
+                np.linalg.inv(cam) @ self._rulers[r],
+                camera=self.true_camera,
+                preset_for=lambda pose: self.preset_for(pose, exposure=exposure),
+                background=lambda: self._background(rng, exposure),
+                texture_seed=r,
+                rng=rng,
+            )
+            if seen_r is not None:
+                with self._lock:
+                    self._last_frame_homography = None
+                    self._last_ruler = (r, seen_r[1])
+                return seen_r[0], None
         seen = np.linalg.inv(cam) @ self.artifact_poses()[self.seen_artifact(cam)]
         view = self._view(seen)
         if view is None:
             with self._lock:
                 self._last_frame_homography = None
+                self._last_ruler = None
             return self._background(rng, exposure), None
         pose, outside = view
         image, truth = render(
             pose,
             preset=self.preset_for(pose, exposure=exposure),
             artifact=self.spec.artifact,
-            camera=self.spec.camera,
+            camera=self.true_camera,
             rng=rng,
         )
         if outside is not None:
             image = np.where(outside, self._background(rng, exposure), image)
         with self._lock:
             self._last_frame_homography = np.array(truth.homography)
+            self._last_ruler = None
         return image, truth
 
     def _view(self, artifact_in_camera: FloatArray) -> tuple[Pose, npt.NDArray[np.bool_] | None] | None:
@@ -425,15 +446,15 @@ class World:
         pose = self.pose(T)
         cam = self.spec.camera
         corners = np.array([[0, 0], [cam.width - 1, 0], [0, cam.height - 1], [cam.width - 1, cam.height - 1]])
-        H_inv = np.asarray(np.linalg.inv(homography_for(pose, cam)), dtype=np.float64)
+        H_inv = np.asarray(np.linalg.inv(homography_for(pose, self.true_camera)), dtype=np.float64)
         half = self.spec.artifact_half_size_mm
-        seen = _on_artifact(H_inv, corners.astype(np.float64))
+        seen = on_artifact(H_inv, corners.astype(np.float64))
         if np.all(np.abs(seen) <= half):
             return pose, None  # the footprint of the frame is convex: all of it is on the plate
         if np.any(np.all(seen > half, axis=0)) or np.any(np.all(seen < -half, axis=0)):
             return None  # the whole footprint beyond one side of the plate
         ys, xs = np.mgrid[0 : cam.height, 0 : cam.width]
-        uv = _on_artifact(H_inv, np.column_stack([xs.ravel(), ys.ravel()]).astype(np.float64))
+        uv = on_artifact(H_inv, np.column_stack([xs.ravel(), ys.ravel()]).astype(np.float64))
         outside = np.any(np.abs(uv) > half, axis=1).reshape(cam.height, cam.width)
         return None if bool(np.all(outside)) else (pose, outside)
 
@@ -446,13 +467,3 @@ class World:
         variance = np.float32(p.read_noise_dn**2) + np.float32(p.shot_noise_gain_dn_per_e) * clean
         noisy = clean + np.sqrt(variance) * rng.standard_normal(shape, dtype=np.float32)
         return np.clip(np.rint(noisy), 0, 255).astype(np.uint8)
-
-
-def _on_artifact(H_inv: FloatArray, px: FloatArray) -> FloatArray:
-    """Artifact-plane points (mm, N x 2) seen at pixels ``px`` (N x 2) through an image -> artifact
-    homography; a pixel whose ray misses the plane (behind the camera) maps to infinity."""
-    h = np.column_stack([px, np.ones(len(px))]) @ H_inv.T
-    w = h[:, 2:3]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        uv = np.where(w > 0, h[:, :2] / np.where(w > 0, w, 1.0), np.inf)
-    return np.asarray(uv, dtype=np.float64)

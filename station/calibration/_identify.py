@@ -1,12 +1,15 @@
-"""Identification: the kinematic errors, tool and artifact poses that best explain the captures.
+"""Identification: the kinematic errors, tool, artifact and ruler poses (and, with rulers, the camera's
+scale) that best explain the captures.
 
-Order of work: (1) the artifacts' positions from the captures under the nominal model (a start, and the
-"before" fit: nominal kinematics, artifacts fitted alone); (2) identifiability at nominal
-(``analyse_identifiability``): the structural list is verified and left at nominal, subset selection
-drops what this data set does not determine; (3) ``scipy.optimize.least_squares`` on the identified
-subset (central-difference Jacobian, internal units mm and mrad); (4) covariance ``s^2 (J^T J)^-1``
-with ``s^2`` from the residuals, 95 % intervals from Student's t; (5) residuals of the configurations
-held out of the fit, and their relative error (``relative_error_um``) before and after.
+Order of work: (1) the artifacts' and rulers' placements from the captures under the nominal model (a
+start, and the "before" fit: nominal kinematics and camera, placements fitted alone); (2)
+identifiability at nominal (``analyse_identifiability``): the structural list is verified and left at
+nominal, subset selection drops what this data set does not determine; (3)
+``scipy.optimize.least_squares`` on the identified subset (central-difference Jacobian, internal units
+mm, mrad and 0.1 px/mm); (4) covariance ``s^2 (J^T J)^-1`` with ``s^2`` from the residuals, 95 %
+intervals from Student's t; (5) residuals of the configurations held out of the fit, their relative
+error (``relative_error_um``, near the artifacts) and, with rulers, their absolute error
+(``absolute_error_um``, along the rulers), before and after.
 """
 
 from __future__ import annotations
@@ -17,10 +20,11 @@ import math
 from collections.abc import Callable, Sequence
 
 import numpy as np
-import scipy.optimize
 import scipy.stats
 
 import station
+from station.calibration._absolute import MIN_SEPARATION_MM
+from station.calibration._fit import LOSSES, Problem, least_squares, method, robust_weights
 from station.calibration._identifiability import (
     STRUCTURAL,
     Deficiency,
@@ -28,132 +32,38 @@ from station.calibration._identifiability import (
     analyse_identifiability,
     reported_name,
 )
-from station.calibration._metric import crossing_positions, relative_error_um
 from station.calibration._model import CalibrationModel, Sigmas
 from station.calibration._observations import (
     CalibrationError,
     CalibrationSetup,
     FloatArray,
     Observation,
-    ObservationArrays,
     observation_arrays,
 )
 from station.calibration._result import (
     CalibrationResult,
     CameraModelModel,
-    CrossValidation,
     DeficiencyModel,
     DHRowModel,
     FitSummary,
     IdentifiabilityModel,
+    Magnification,
     ParameterEstimate,
-    ResidualSummary,
 )
+from station.calibration._ruler_observations import RulerObservation, ruler_arrays
+from station.calibration._start import initial_artifacts, initial_rulers
+from station.calibration._validation import cross_validation, residual_summary, ruler_residual_summary
 
 log = logging.getLogger(__name__)
+
+CAMERA_CHOICES = ("auto", "fixed", "fitted")
+"""``camera``: ``fixed`` takes the setup's camera model and sensor mount as known; ``fitted`` identifies
+the image scale and the sensor's offset along the optical axis; ``auto`` fits them when there are ruler
+frames (the scale then comes from the rulers' calibrated pitch) and keeps them otherwise."""
 
 
 def _utc_now() -> dt.datetime:
     return dt.datetime.now(dt.UTC)
-
-
-def residual_summary(
-    model: CalibrationModel, delta: FloatArray, arrays: ObservationArrays
-) -> ResidualSummary:
-    """RMS and largest residuals (mm) of ``arrays`` under ``delta``, and each observation's (µm, to
-    0.01 µm: an outlier shows in the report's histogram)."""
-    xy, dz = model.residuals_mm(delta, arrays)
-    r = np.linalg.norm(xy, axis=1)
-    return ResidualSummary(
-        n=len(arrays),
-        rms_xy_mm=float(np.sqrt(np.mean(r**2))),
-        max_xy_mm=float(r.max()),
-        n_z=int(dz.size),
-        rms_z_mm=float(np.sqrt(np.mean(dz**2))) if dz.size else None,
-        max_z_mm=float(np.abs(dz).max()) if dz.size else None,
-        xy_um=np.round(r * 1000.0, 2).tolist(),
-        z_um=np.round(dz * 1000.0, 2).tolist(),
-    )
-
-
-def _least_squares(
-    model: CalibrationModel,
-    delta0: FloatArray,
-    free: Sequence[int],
-    arrays: ObservationArrays,
-    sigmas: Sigmas,
-    max_nfev: int,
-    loss: str = "linear",
-    f_scale: float = 1.0,
-) -> tuple[FloatArray, scipy.optimize.OptimizeResult]:
-    idx = np.asarray(free, dtype=int)
-    unit = model.internal_unit[idx]
-
-    def full(x: FloatArray) -> FloatArray:
-        d = delta0.copy()
-        d[idx] = delta0[idx] + x * unit
-        return d
-
-    def fun(x: FloatArray) -> FloatArray:
-        return model.weighted_residuals(full(x), arrays, sigmas)
-
-    def jac(x: FloatArray) -> FloatArray:
-        return model.jacobian(full(x), arrays, sigmas, free)
-
-    sol = scipy.optimize.least_squares(
-        fun,
-        np.zeros(idx.size),
-        jac=jac,
-        method=_method(loss),
-        loss=loss,
-        f_scale=f_scale,
-        x_scale="jac",
-        xtol=1e-12,
-        ftol=1e-12,
-        gtol=1e-10,
-        max_nfev=max_nfev,
-    )
-    return full(sol.x), sol
-
-
-LOSSES = ("linear", "soft_l1", "huber", "cauchy")
-"""The fit's losses (``scipy.optimize.least_squares``'s names): ``linear`` is least squares; the others
-weigh a residual beyond ``f_scale`` sigmas less, so that an outlier (a mismeasured capture) pulls less."""
-
-
-def _method(loss: str) -> str:
-    """The optimiser's method for ``loss``: Levenberg-Marquardt, which has no robust loss, or trf."""
-    return "lm" if loss == "linear" else "trf"
-
-
-def robust_weights(r: FloatArray, loss: str, f_scale: float) -> FloatArray:
-    """Each (sigma-weighted) residual's weight ``rho'(z)``, ``z = (r / f_scale)^2``, at the solution: the
-    iteratively reweighted least-squares view of the robust fit (1 everywhere for ``linear``)."""
-    z = (np.asarray(r, dtype=float) / f_scale) ** 2
-    if loss == "linear":
-        return np.ones_like(z)
-    if loss == "soft_l1":
-        return np.asarray(1.0 / np.sqrt(1.0 + z))
-    if loss == "huber":
-        return np.where(z <= 1.0, 1.0, 1.0 / np.sqrt(np.maximum(z, 1.0)))
-    if loss == "cauchy":
-        return np.asarray(1.0 / (1.0 + z))
-    raise CalibrationError(f"unknown loss {loss!r}; one of {', '.join(LOSSES)}")
-
-
-def initial_artifacts(model: CalibrationModel, observations: Sequence[Observation]) -> FloatArray:
-    """Errors with the artifacts' positions from the captures under the nominal model (the mean crossing
-    position per placement); the nominal position where a placement has no capture with a reading."""
-    delta = model.zeros()
-    kin = model.kinematics(delta)
-    setup = model.setup
-    for i, k in enumerate(model.placements):
-        seen = [o for o in observations if o.placement == k and o.z_mm is not None]
-        if not seen:
-            continue
-        p = np.nanmean(crossing_positions(seen, kin, setup.camera, setup.sensor_mount), axis=0)
-        delta[model.artifact_delta_indices(i)[:3]] = p - np.asarray(setup.artifacts[k], dtype=float)
-    return delta
 
 
 def analyse(
@@ -169,36 +79,54 @@ def analyse(
     them under the nominal model.
     """
     sig = sigmas or Sigmas()
-    model = CalibrationModel(setup, placements=sorted({o.placement for o in observations}))
+    model = CalibrationModel(setup, placements=sorted({o.placement for o in observations}), rulers=())
     arrays = observation_arrays(observations, model.placements)
     start = initial_artifacts(model, observations)
     return analyse_identifiability(model, model.jacobian(start, arrays, sig), rcond=rcond)
+
+
+def _check_options(loss: str, f_scale: float, camera: str) -> None:
+    if loss not in LOSSES:
+        raise CalibrationError(f"unknown loss {loss!r}; one of {', '.join(LOSSES)}")
+    if not (math.isfinite(f_scale) and f_scale > 0):
+        raise CalibrationError(f"f_scale must be a positive number of sigmas, got {f_scale!r}")
+    if camera not in CAMERA_CHOICES:
+        raise CalibrationError(f"camera must be one of {', '.join(CAMERA_CHOICES)}, got {camera!r}")
 
 
 def identify(
     observations: Sequence[Observation],
     setup: CalibrationSetup,
     *,
+    rulers: Sequence[RulerObservation] = (),
+    camera: str = "auto",
     sigmas: Sigmas | None = None,
     holdout: Sequence[int] = (),
     rcond: float = 1e-5,
     max_nfev: int = 50,
     loss: str = "linear",
     f_scale: float = 3.0,
+    min_separation_mm: float = MIN_SEPARATION_MM,
     clock: Callable[[], dt.datetime] = _utc_now,
 ) -> CalibrationResult:
-    """Identify the arm's kinematic errors, the tool and the artifacts from a calibration session.
+    """Identify the arm's kinematic errors, the tool, the artifacts and rulers from a calibration session.
 
     Parameters
     ----------
     observations
-        The session's captures (see :class:`Observation`).
+        The session's captures of crossings (see :class:`Observation`).
     setup
-        The known and nominal constants.
+        The known and nominal constants (the rulers' taught placements among them).
+    rulers
+        The session's ruler frames (see :class:`RulerObservation`); their configuration ids share the
+        crossings' id space.
+    camera
+        ``auto`` (default), ``fixed`` or ``fitted``: whether the image scale and the sensor's offset along
+        the optical axis are identified (:data:`CAMERA_CHOICES`).
     sigmas
-        The measurement's standard deviations that weight the residuals (5 um each by default).
+        The measurement's standard deviations that weight the residuals (see :class:`Sigmas`).
     holdout
-        Configuration ids left out of the fit for cross-validation.
+        Configuration ids left out of the fit for cross-validation (crossings' and rulers').
     rcond
         Subset selection's threshold (see ``analyse_identifiability``).
     max_nfev
@@ -207,6 +135,8 @@ def identify(
         The fit's loss (:data:`LOSSES`) and, for a robust one, the residual (in sigmas) beyond which an
         observation weighs less. The covariance is then ``s2 (J^T W J)^-1`` with ``W`` the final weights
         and ``s2`` their weighted variance factor (an M-estimator's approximation).
+    min_separation_mm
+        Held-out ruler frames closer than this along the ruler are not paired for the absolute error.
     clock
         Gives the result's creation time (UTC).
 
@@ -220,42 +150,48 @@ def identify(
     CalibrationError
         Bad input or too little data (fewer residuals than identified parameters).
     """
-    if loss not in LOSSES:
-        raise CalibrationError(f"unknown loss {loss!r}; one of {', '.join(LOSSES)}")
-    if not (math.isfinite(f_scale) and f_scale > 0):
-        raise CalibrationError(f"f_scale must be a positive number of sigmas, got {f_scale!r}")
+    _check_options(loss, f_scale, camera)
     sig = sigmas or Sigmas()
     held = set(holdout)
     train = [o for o in observations if o.configuration not in held]
     test = [o for o in observations if o.configuration in held]
+    ruler_train = [o for o in rulers if o.configuration not in held]
+    ruler_test = [o for o in rulers if o.configuration in held]
     if not train:
         raise CalibrationError("every observation is held out: leave some configurations in the fit")
-    model = CalibrationModel(setup, placements=sorted({o.placement for o in train}))
+    fitted_camera = camera == "fitted" or (camera == "auto" and bool(ruler_train))
+    model = CalibrationModel(
+        setup,
+        placements=sorted({o.placement for o in train}),
+        rulers=sorted({o.ruler for o in ruler_train}),
+        camera=fitted_camera,
+    )
     unfit = sorted({o.placement for o in test} - set(model.placements))
-    if unfit:
-        raise CalibrationError(
-            f"held-out placements {unfit} have no capture in the fit: hold out fewer configurations"
-        )
+    unfit_rulers = sorted({o.ruler for o in ruler_test} - set(model.rulers))
+    if unfit or unfit_rulers:
+        what = f"placements {unfit}" if unfit else f"rulers {unfit_rulers}"
+        raise CalibrationError(f"held-out {what} have no capture in the fit: hold out fewer configurations")
     arrays = observation_arrays(train, model.placements)
-
-    m = 2 * len(arrays) + int(arrays.has_z.sum())
-    if m <= len(model.artifact_indices()):
+    problem = Problem(model, arrays, sig, ruler_arrays(ruler_train, model.rulers) if ruler_train else None)
+    m = problem.residual_count
+    if m <= len(model.placement_indices()):
         raise CalibrationError(
-            f"{m} residuals cannot even place {len(model.placements)} artifact(s):"
-            " capture more configurations"
+            f"{m} residuals cannot even place {len(model.placements)} artifact(s) and {len(model.rulers)}"
+            " ruler(s): capture more configurations"
         )
-    # (1) the "before": nominal kinematics, artifacts fitted alone
-    start = initial_artifacts(model, train)
-    before, _ = _least_squares(model, start, model.artifact_indices(), arrays, sig, max_nfev)
+    # (1) the "before": nominal kinematics and camera, placements fitted alone
+    start = initial_rulers(model, ruler_train, initial_artifacts(model, train))
+    before, _ = least_squares(problem, start, model.placement_indices(), max_nfev)
     # (2) identifiability at nominal
-    report = analyse_identifiability(model, model.jacobian(before, arrays, sig), rcond=rcond)
+    report = analyse_identifiability(model, problem.jacobian(before), rcond=rcond)
     free = [model.index[n] for n in report.identified]
     log.info(
-        "identifying %d parameters from %d observations (%d held out); condition number %.3g;"
-        " not determined by this data: %s",
+        "identifying %d parameters from %d observations and %d ruler frames (%d held out); condition number"
+        " %.3g; not determined by this data: %s",
         len(free),
         len(arrays),
-        len(test),
+        len(ruler_train),
+        len(test) + len(ruler_test),
         report.condition_number,
         ", ".join(report.deficient) or "none",
     )
@@ -264,17 +200,69 @@ def identify(
             f"{m} residuals cannot determine {len(free)} parameters: capture more configurations"
         )
     # (3) the fit
-    delta, sol = _least_squares(model, before, free, arrays, sig, max_nfev, loss, f_scale)
+    delta, sol = least_squares(problem, before, free, max_nfev, loss, f_scale)
     # (4) covariance on the identified subset
-    J = model.jacobian(delta, arrays, sig, free)
-    r = model.weighted_residuals(delta, arrays, sig)
+    J = problem.jacobian(delta, free)
+    r = problem.residuals(delta)
     w = robust_weights(r, loss, f_scale)
     dof = m - len(free)
     s2 = float(np.sum(w * r * r) / dof)
     cov = s2 * np.linalg.pinv(J.T @ (J * w[:, None]), rcond=1e-15, hermitian=True)
     sigma = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * model.internal_unit[free]
     t95 = float(scipy.stats.t.ppf(0.975, dof))
-    sigma_of = dict(zip(free, sigma, strict=True))
+    params = _estimates(model, delta, dict(zip(free, sigma, strict=True)), t95)
+    # (5) cross-validation
+    cv = cross_validation(
+        model, (before, delta), problem, sorted(held), (test, ruler_test), min_separation_mm
+    )
+    rulers_summary = None
+    if problem.rulers is not None:
+        rulers_summary = {
+            "before": ruler_residual_summary(model, before, problem.rulers),
+            "after": ruler_residual_summary(model, delta, problem.rulers),
+        }
+    return CalibrationResult(
+        software_version=station.__version__,
+        created=clock().astimezone(dt.UTC).isoformat(),
+        nominal_dh=[DHRowModel.of(row) for row in setup.nominal_dh],
+        calibrated_dh=[DHRowModel.of(row) for row in model.dh(delta)],
+        nominal_tool=setup.nominal_tool.tolist(),
+        calibrated_tool=model.tool(delta).tolist(),
+        camera=CameraModelModel.of(model.camera(delta)),
+        sensor_mount=model.sensor_mount(delta).tolist(),
+        parameters=params,
+        identified_count=len(free),
+        condition_number=report.condition_number,
+        unidentifiable=report.unidentifiable,
+        identifiability=_identifiability_model(report),
+        residuals={
+            "before": residual_summary(model, before, arrays),
+            "after": residual_summary(model, delta, arrays),
+        },
+        cross_validation=cv,
+        fit=FitSummary(
+            method=method(loss),
+            loss=loss,
+            f_scale=None if loss == "linear" else f_scale,
+            downweighted=int(np.sum(w < 0.5)),
+            evaluations=int(sol.nfev),
+            status=int(sol.status),
+            message=str(sol.message),
+            observations=len(arrays) + (0 if problem.rulers is None else len(problem.rulers)),
+            residuals=m,
+            dof=dof,
+            s2=s2,
+        ),
+        sigmas_mm={"xy": sig.xy_mm, "z": sig.z_mm, **({"ruler": sig.ruler_mm} if problem.rulers else {})},
+        magnification=_magnification(model, params) if model.camera_free else None,
+        ruler_residuals=rulers_summary,
+    )
+
+
+def _estimates(
+    model: CalibrationModel, delta: FloatArray, sigma_of: dict[int, float], t95: float
+) -> list[ParameterEstimate]:
+    """Every parameter's estimate; ``d2`` reported as ``d2+d3``."""
     params = []
     values = model.nominal + delta
     nominal = model.nominal.copy()
@@ -295,58 +283,19 @@ def identify(
                 structural=name in STRUCTURAL,
             )
         )
-    # (5) cross-validation
-    cv = CrossValidation(held_out_configurations=sorted(held), n_observations=len(test))
-    if test:
-        test_arrays = observation_arrays(test, model.placements)
-        rel: dict[str, float] = {}
-        try:
-            rel["before"] = relative_error_um(
-                test, model.kinematics(before), setup.camera, setup.sensor_mount
-            )
-            rel["after"] = relative_error_um(test, model.kinematics(delta), setup.camera, setup.sensor_mount)
-        except CalibrationError:
-            rel = {}
-        cv = CrossValidation(
-            held_out_configurations=sorted(held),
-            n_observations=len(test),
-            before=residual_summary(model, before, test_arrays),
-            after=residual_summary(model, delta, test_arrays),
-            relative_error_um=rel,
-        )
-    return CalibrationResult(
-        software_version=station.__version__,
-        created=clock().astimezone(dt.UTC).isoformat(),
-        nominal_dh=[DHRowModel.of(row) for row in setup.nominal_dh],
-        calibrated_dh=[DHRowModel.of(row) for row in model.dh(delta)],
-        nominal_tool=setup.nominal_tool.tolist(),
-        calibrated_tool=model.tool(delta).tolist(),
-        camera=CameraModelModel.of(setup.camera),
-        sensor_mount=setup.sensor_mount.tolist(),
-        parameters=params,
-        identified_count=len(free),
-        condition_number=report.condition_number,
-        unidentifiable=report.unidentifiable,
-        identifiability=_identifiability_model(report),
-        residuals={
-            "before": residual_summary(model, before, arrays),
-            "after": residual_summary(model, delta, arrays),
-        },
-        cross_validation=cv,
-        fit=FitSummary(
-            method=_method(loss),
-            loss=loss,
-            f_scale=None if loss == "linear" else f_scale,
-            downweighted=int(np.sum(w < 0.5)),
-            evaluations=int(sol.nfev),
-            status=int(sol.status),
-            message=str(sol.message),
-            observations=len(arrays),
-            residuals=m,
-            dof=dof,
-            s2=s2,
-        ),
-        sigmas_mm={"xy": sig.xy_mm, "z": sig.z_mm},
+    return params
+
+
+def _magnification(model: CalibrationModel, params: list[ParameterEstimate]) -> Magnification:
+    by_name = {p.name: p for p in params}
+    scale, sensor = by_name["px_per_mm"], by_name["sensor_z"]
+    return Magnification(
+        px_per_mm=scale.estimate,
+        nominal_px_per_mm=scale.nominal,
+        sigma=scale.sigma,
+        interval=scale.interval,
+        relative_to_nominal=scale.estimate / scale.nominal - 1.0,
+        sensor_z_mm=sensor.estimate,
     )
 
 
@@ -367,4 +316,12 @@ def _identifiability_model(report: IdentifiabilityReport) -> IdentifiabilityMode
     )
 
 
-__all__ = ["analyse", "identify", "initial_artifacts", "residual_summary"]
+__all__ = [
+    "CAMERA_CHOICES",
+    "LOSSES",
+    "analyse",
+    "identify",
+    "initial_artifacts",
+    "residual_summary",
+    "robust_weights",
+]

@@ -1,10 +1,11 @@
 """What the identification reads: the captures of a calibration session and the station's known constants.
 
 An :class:`Observation` is one capture: the encoder readings, the measured pixel of the groove crossing
-and the distance sensor's reading. A :class:`CalibrationSetup` holds what is known before the fit: the
-camera's intrinsics, the sensor's mount, the nominal DH table and tool, and the approximate artifact
-placements. Both are plain, immutable data; :func:`observation_arrays` stacks observations into the
-arrays the vectorised model works on.
+and the distance sensor's reading (a ruler's frames are ``RulerObservation``, ``_ruler_observations``). A
+:class:`CalibrationSetup` holds what is known before the fit: the camera's intrinsics, the sensor's mount,
+the nominal DH table and tool, the approximate artifact placements and the rulers' (:class:`RulerPlacement`).
+Both are plain, immutable data; :func:`observation_arrays` stacks observations into the arrays the
+vectorised model works on.
 """
 
 from __future__ import annotations
@@ -116,6 +117,63 @@ class CameraModel:
         )
 
 
+def _unit(value: npt.ArrayLike, name: str) -> FloatArray:
+    v = np.asarray(value, dtype=float)
+    norm = float(np.linalg.norm(v)) if v.shape == (3,) else math.nan
+    if not (math.isfinite(norm) and norm > 0):
+        raise CalibrationError(f"{name} must be a non-zero, finite 3-vector, got {value!r}")
+    return np.asarray(v / norm, dtype=float)
+
+
+@dataclass(frozen=True)
+class RulerPlacement:
+    """Where a ruler lies in the cell, as taught (base frame): the fit starts here.
+
+    Attributes
+    ----------
+    origin_mm
+        Graduation 0's point on the ruler's axis (``t = 0``), on its top surface (mm).
+    direction
+        The direction of increasing position along the ruler (``+s``).
+    normal
+        The top surface's upward normal (toward the camera that reads it); +z (level) by default.
+
+    Notes
+    -----
+    The ruler's frame (``station/vision/RULER.md``): ``s`` along it, ``t`` across, ``n = s x t`` into
+    the ruler (away from the camera), so that a camera square on it sees ``t`` at +90 deg from ``s`` in
+    the image's handedness, as ``measure_ruler`` reports.
+    """
+
+    origin_mm: tuple[float, float, float]
+    direction: tuple[float, float, float]
+    normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
+
+    def __post_init__(self) -> None:
+        origin = tuple(float(v) for v in self.origin_mm)
+        if len(origin) != 3 or not all(math.isfinite(v) for v in origin):
+            raise CalibrationError(
+                f"a ruler's origin_mm must be 3 finite coordinates, got {self.origin_mm!r}"
+            )
+        object.__setattr__(self, "origin_mm", origin)
+        s = _unit(self.direction, "a ruler's direction")
+        n = _unit(self.normal, "a ruler's normal")
+        if abs(float(s @ n)) > 0.2:
+            raise CalibrationError(
+                f"a ruler's direction {self.direction!r} must lie in its surface, nearly square to its normal"
+                f" {self.normal!r} (within 11 deg); teach both again"
+            )
+
+    def frame(self) -> FloatArray:
+        """3x3 rotation with columns ``s, t, n`` (base frame): ``s`` the direction made square to the
+        normal, ``n`` the downward normal, ``t = n x s``."""
+        down = -_unit(self.normal, "normal")
+        s = _unit(self.direction, "direction")
+        s = s - (s @ down) * down
+        s = s / np.linalg.norm(s)
+        return np.column_stack([s, np.cross(down, s), down])
+
+
 def _checked_4x4(value: npt.ArrayLike, name: str) -> FloatArray:
     T = np.array(value, dtype=float)
     if T.shape != (4, 4) or not np.allclose(T[3], [0, 0, 0, 1]) or not np.all(np.isfinite(T)):
@@ -143,6 +201,8 @@ class CalibrationSetup:
         The nominal normal of each placement's top plane (base frame); +z (level) when absent.
     nominal_dh
         The nominal DH table (the A465's by default).
+    rulers
+        Each ruler's taught placement, by ruler id (none by default).
     """
 
     camera: CameraModel
@@ -151,6 +211,7 @@ class CalibrationSetup:
     artifacts: Mapping[int, tuple[float, float, float]]
     artifact_normals: Mapping[int, tuple[float, float, float]] = field(default_factory=dict)
     nominal_dh: tuple[DHRow, ...] = A465_DH
+    rulers: Mapping[int, RulerPlacement] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "sensor_mount", _checked_4x4(self.sensor_mount, "sensor_mount"))
@@ -165,6 +226,9 @@ class CalibrationSetup:
         for k, n in self.artifact_normals.items():
             if len(n) != 3 or not math.isfinite(float(np.linalg.norm(n))) or float(np.linalg.norm(n)) == 0:
                 raise CalibrationError(f"artifact_normals[{k}] must be a non-zero 3-vector, got {n!r}")
+        for k, r in self.rulers.items():
+            if not isinstance(r, RulerPlacement):
+                raise CalibrationError(f"rulers[{k}] must be a RulerPlacement, got {type(r).__name__}")
 
     @property
     def placements(self) -> tuple[int, ...]:

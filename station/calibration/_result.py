@@ -128,6 +128,32 @@ class IdentifiabilityModel(_Model):
     dropped: list[DeficiencyModel]
 
 
+class RulerResidualSummary(_Model):
+    """Residuals of a set of ruler frames: ``s`` and ``t`` under the reference pixel (mm), the image
+    scale (ppm) and the sensor's reading (mm)."""
+
+    n: int
+    rms_st_mm: float
+    max_st_mm: float
+    n_scale: int
+    rms_scale_ppm: float | None
+    n_z: int
+    rms_z_mm: float | None
+
+
+RELATIVE_ERROR_MEANS = (
+    "near the artifacts: the mean in-plane distance (um) between two held-out configurations' positions of "
+    "one crossing (the same point: ideally 0), camera turns and joint solutions apart; a model wrong in "
+    "its lengths can still bring them together"
+)
+ABSOLUTE_ERROR_MEANS = (
+    "along the rulers: the mean magnitude (um) of the arm's predicted displacement between two held-out "
+    "frames of one ruler, 10 mm or more apart, minus the ruler's reading of it (lengths up to the "
+    "ruler's 250 mm, which the crossings do not constrain); floor: what the fitted frames' scatter "
+    "(the arm's repeatability and the measurement) leaves"
+)
+
+
 class CrossValidation(_Model):
     """The fit's residuals on configurations held out of it, and the relative error on their pairs."""
 
@@ -135,7 +161,28 @@ class CrossValidation(_Model):
     n_observations: int
     before: ResidualSummary | None = None
     after: ResidualSummary | None = None
-    relative_error_um: dict[str, float] = Field(default_factory=dict)
+    relative_error_um: dict[str, float] = Field(default_factory=dict, description=RELATIVE_ERROR_MEANS)
+    n_ruler_observations: int = Field(0, description="held-out ruler frames")
+    absolute_error_um: dict[str, float] = Field(
+        default_factory=dict,
+        description=f"'before', 'after', 'floor' (um): {ABSOLUTE_ERROR_MEANS}",
+    )
+    absolute_pairs: int = Field(0, description="pairs of held-out ruler frames the absolute error averages")
+    measures: dict[str, str] = Field(
+        default_factory=dict, description="what each error above measures, and over which region"
+    )
+
+
+class Magnification(_Model):
+    """The camera's image scale at the capture plane, as the rulers' calibrated pitch measured it."""
+
+    px_per_mm: float = Field(description="the estimate, px/mm")
+    nominal_px_per_mm: float = Field(description="what the camera model said before, px/mm")
+    sigma: float | None = Field(description="standard uncertainty, px/mm")
+    interval: tuple[float, float] | None = Field(description="95 % interval, px/mm")
+    relative_to_nominal: float = Field(description="estimate / nominal - 1")
+    sensor_z_mm: float = Field(description="the sensor mount's offset along the optical axis, as fitted")
+    source: str = Field("ruler", description="where the scale comes from: the rulers' certificates")
 
 
 class FitSummary(_Model):
@@ -164,7 +211,7 @@ class CalibrationResult(_Model):
     calibrated_dh: list[DHRowModel]
     nominal_tool: list[list[float]] = Field(description="4x4 camera frame in the flange frame, nominal")
     calibrated_tool: list[list[float]] = Field(description="4x4 camera frame in the flange frame, calibrated")
-    camera: CameraModelModel
+    camera: CameraModelModel = Field(description="the camera model to use with this calibration")
     sensor_mount: list[list[float]] = Field(description="4x4 sensor frame in the camera frame; beam along +z")
     parameters: list[ParameterEstimate]
     identified_count: int
@@ -175,6 +222,14 @@ class CalibrationResult(_Model):
     cross_validation: CrossValidation
     fit: FitSummary
     sigmas_mm: dict[str, float]
+    magnification: Magnification | None = Field(
+        None,
+        description="the camera's scale, identified from ruler frames (then ``camera`` and ``sensor_mount`` "
+        "are the calibrated ones); None when the camera model was taken as known",
+    )
+    ruler_residuals: dict[str, RulerResidualSummary] | None = Field(
+        None, description="the ruler frames' residuals, 'before' (nominal) and 'after' (calibrated)"
+    )
 
     def kinematics(self) -> Kinematics:
         """The calibrated arm with the camera as the tool."""
@@ -239,6 +294,8 @@ __all__ = [
     "DeficiencyModel",
     "FitSummary",
     "IdentifiabilityModel",
+    "Magnification",
     "ParameterEstimate",
     "ResidualSummary",
+    "RulerResidualSummary",
 ]

@@ -8,6 +8,9 @@ The fit leaves the structural parameters at nominal; the truth they carry moves 
 * ``d6`` and ``theta6_offset`` are ``RotZ(dtheta6) TransZ(dd6)`` in front of the tool;
 * ``d3`` is added to ``d2`` (exact when axes 2 and 3 are parallel; with the true ``alpha2`` and
   ``beta2`` the difference is of second order, ``d3 x angle``: below 1 um for 0.5 mm and 0.1 deg).
+
+The rulers, like the artifacts, are seen through ``G^-1``; the camera's scale and the sensor's offset
+(when the model fits them) are the true camera's: its focal length over the capture plane's true depth.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import numpy.typing as npt
 
 from station.calibration._model import HAYATI_ROW, CalibrationModel
 from station.calibration._observations import FloatArray
+from station.calibration._start import rotation_angles
 from station.kinematics import JOINTS, DHRow, Kinematics, rot_z, transform
 
 
@@ -32,6 +36,9 @@ def equivalent_errors(
     true_dh: Sequence[DHRow],
     true_tool: npt.ArrayLike,
     true_artifacts: Mapping[int, tuple[npt.ArrayLike, npt.ArrayLike]],
+    *,
+    true_rulers: Mapping[int, npt.ArrayLike] | None = None,
+    true_camera: tuple[float, float] | None = None,
 ) -> FloatArray:
     """The error vector of ``model`` that describes the true arm with the structural parameters at nominal.
 
@@ -41,6 +48,11 @@ def equivalent_errors(
         The true DH table and camera-in-flange transform (4x4).
     true_artifacts
         Per placement: the true crossing (base frame, mm) and the plane's normal (either sign).
+    true_rulers
+        Per ruler of the model: its true 4x4 frame (origin at graduation 0, columns ``s, t, n``).
+    true_camera
+        When the model fits the camera: the true focal length (px) and sensor offset along the optical
+        axis (``sensor_mount[2, 3]``, mm).
     """
     nominal_dh = model.setup.nominal_dh
     delta = model.zeros()
@@ -82,6 +94,21 @@ def equivalent_errors(
         idx = model.artifact_delta_indices(k_index)
         delta[idx[:3]] = p - np.asarray(model.setup.artifacts[k], dtype=float)
         delta[idx[3:]] = np.degrees([rx_k, ry_k])
+    for r_index, r in enumerate(model.rulers):
+        if true_rulers is None or r not in true_rulers:
+            raise ValueError(f"the model has ruler {r}: give its true frame in true_rulers")
+        T = Ginv @ np.asarray(true_rulers[r], dtype=float)
+        idx = model.ruler_delta_indices(r_index)
+        delta[idx[:3]] = T[:3, 3] - np.asarray(model.setup.rulers[r].origin_mm, dtype=float)
+        delta[idx[3:]] = np.degrees(rotation_angles(model.setup.rulers[r].frame().T @ T[:3, :3]))
+    if model.camera_free:
+        if true_camera is None:
+            raise ValueError("the model fits the camera: give true_camera (focal length px, sensor z mm)")
+        focal, sensor_z = true_camera
+        sensor_error = sensor_z - float(model.setup.sensor_mount[2, 3])
+        delta[model.index["sensor_z"]] = sensor_error
+        scale = focal / (model.setup.camera.working_distance_mm + sensor_error)
+        delta[model.index["px_per_mm"]] = scale - model.nominal_px_per_mm
     return delta
 
 
@@ -104,12 +131,19 @@ def true_values(
     true_dh: Sequence[DHRow],
     true_tool: npt.ArrayLike,
     true_artifacts: Mapping[int, tuple[npt.ArrayLike, npt.ArrayLike]],
+    *,
+    true_rulers: Mapping[int, npt.ArrayLike] | None = None,
+    true_camera: tuple[float, float] | None = None,
 ) -> dict[str, float]:
     """A known true arm's value of every parameter, by reported name (natural units, ``d2+d3`` as the
-    sum): what an identification's estimates are compared with in tests and benchmarks."""
+    sum): what an identification's estimates are compared with in tests and benchmarks (the rulers and
+    the camera as :func:`equivalent_errors` takes them)."""
     from station.calibration._identifiability import reported_name
 
-    values = model.nominal + equivalent_errors(model, true_dh, true_tool, true_artifacts)
+    delta = equivalent_errors(
+        model, true_dh, true_tool, true_artifacts, true_rulers=true_rulers, true_camera=true_camera
+    )
+    values = model.nominal + delta
     values[model.index["d2"]] += model.nominal[model.index["d3"]]
     return {reported_name(n) if n == "d2" else n: float(v) for n, v in zip(model.names, values, strict=True)}
 

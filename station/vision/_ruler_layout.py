@@ -164,6 +164,8 @@ def _tip_zone(
     zone = stretch(lo, hi)
     if zone is None:
         return None
-    edges = np.arange(lo, hi - 1e-9, px)
+    starts = np.arange(lo, hi - 1e-9, px)
+    ends = np.append(starts[1:], hi)  # each strip ends where the next starts: no overlap by rounding
     bins = math.ceil((zone[1] - zone[0]) * TIP_BINS_PER_PERIOD)
-    return Strips(np.array([[a, min(a + px, hi), zone[0], TIP_BINS_PER_PERIOD, bins] for a in edges]))
+    rows = [[a, b, zone[0], TIP_BINS_PER_PERIOD, bins] for a, b in zip(starts, ends, strict=True)]
+    return Strips(np.array(rows))

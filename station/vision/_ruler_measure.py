@@ -9,6 +9,7 @@ reference pixel. The design and the method's reasons: ``station/vision/RULER.md`
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 
@@ -27,12 +28,14 @@ from station.vision._ruler_params import RulerParams
 from station.vision._ruler_phase import (
     FrameCorrection,
     WindowPhases,
+    Windows,
     fit_correction,
     template_value,
     window_phases,
     windows_from_bins,
 )
 from station.vision._ruler_result import RulerMeasurement
+from station.vision._ruler_spec import RulerSpec
 from station.vision._ruler_tips import Tips, contrasts, fit_tip
 
 FloatArray = npt.NDArray[np.float64]
@@ -86,12 +89,13 @@ def measure_ruler(
     frame = coarse.frame
     first = plan(frame, period, p, gray.shape, full=False)
     quick = fold(gray, frame, first.strips, coords, step=FIRST_PASS_STEP)
-    _, phases, correction = _phase_pass(gray, frame, first, quick, p, quick=True)
-    frame = _corrected(frame, correction, gray.shape)
+    _, phases, correction, _ = _phase_pass(gray, frame, first, quick, p, quick=True)
+    pinhole = _pinhole(p, gray.shape)
+    frame = _corrected(frame, correction, gray.shape, pinhole)
     second = plan(frame, period, p, gray.shape, full=True)
     bins = fold(gray, frame, second.strips, coords)
-    windows_used, phases, correction = _phase_pass(gray, frame, second, bins, p)
-    final = _corrected(frame, correction, gray.shape)
+    windows_used, phases, correction, w = _phase_pass(gray, frame, second, bins, p)
+    final = _corrected(frame, correction, gray.shape, pinhole)
     remap = _remap(correction)
     code_bins = second.rows(bins, second.code_rows)
     dark, bright = _levels(second, phases, code_bins, remap)
@@ -104,6 +108,13 @@ def measure_ruler(
         bright,
     )
     reading = read_code(cells, darkness, spec)
+    cut = _past_the_ends(second, reading.graduation, spec) & (phases.info > 0)
+    if cut.any():  # windows the ruler's end cuts: their profile is not the grating's, refit without them
+        phases = dataclasses.replace(phases, info=np.where(cut, 0.0, phases.info))
+        windows_used = _check_reach(w, phases.info > 0, second, p)
+        correction = fit_correction(w, phases, perspective=_perspective(p, frame, gray.shape))
+        final = _corrected(frame, correction, gray.shape, pinhole)
+        remap = _remap(correction)
     lower, upper = second.tips
     if lower is None or upper is None:
         raise OffRulerError(
@@ -125,7 +136,12 @@ def measure_ruler(
         "period_px": round(1.0 / float(np.hypot(*grad_s)), 6),
         "px_per_mm": round(1.0 / float(np.hypot(*grad_s)) / spec.pitch_mm, 6),
         "periods_in_view": round(coarse.stretch[1] - coarse.stretch[0], 3),
-        "windows": {"used": correction.used, "total": len(correction.residual), "in_view": windows_used},
+        "windows": {
+            "used": correction.used,
+            "total": len(correction.residual),
+            "in_view": windows_used,
+            "cut_by_end": int(cut.sum()),
+        },
         "phase_rms_px": round(float(np.sqrt(np.mean(correction.residual**2))) * period, 6),
         "noise_dn": round(phases.noise_dn, 4),
         "rejected_bins": phases.rejected,
@@ -159,8 +175,9 @@ def _phase_pass(
     p: RulerParams,
     *,
     quick: bool = False,
-) -> tuple[int, WindowPhases, FrameCorrection]:
-    """Window phases and the frame's correction from one pass's phase strips."""
+) -> tuple[int, WindowPhases, FrameCorrection, Windows]:
+    """Window phases, the frame's correction and the windows from one pass's phase strips; the count
+    of windows in view with graduations."""
     if len(layout.window_starts) < 3:
         raise TooFewGraduationsError(
             f"fewer than 3 phase windows ({p.window_periods} periods each) fit in the view: centre the "
@@ -185,37 +202,66 @@ def _phase_pass(
     same_after = np.concatenate([strip[:-1] == strip[1:], [False]])
     ended = (same_before & ~np.roll(graduated, 1)) | (same_after & ~np.roll(graduated, -1))
     present = graduated & ~ended & (pixels >= MIN_WINDOW_FILL * np.median(pixels))
+    count = _check_reach(w, present, layout, p)
+    kept = dataclasses.replace(phases, info=np.where(present, phases.info, 0.0))
+    return count, kept, fit_correction(w, kept, perspective=_perspective(p, frame, gray.shape)), w
+
+
+def _check_reach(w: Windows, present: npt.NDArray[np.bool_], layout: Plan, p: RulerParams) -> int:
+    """The count of windows kept, once checked that they span ``min_periods`` along the ruler."""
     span = w.moments[present, 1]
     reach = float(span.max() - span.min()) + float(np.median(layout.window_lengths)) if present.any() else 0.0
-    if reach < p.min_periods:
+    if reach < p.min_periods or np.count_nonzero(present) < 3:
         raise TooFewGraduationsError(
             f"graduations are seen over {reach:.1f} periods only (at least {p.min_periods:g} needed): the "
             "end of the ruler? Move the view along the ruler"
         )
-    kept = WindowPhases(
-        delta=phases.delta,
-        info=np.where(present, phases.info, 0.0),
-        amplitude=phases.amplitude,
-        contrast=phases.contrast,
-        dark=phases.dark,
-        bright=phases.bright,
-        noise_dn=phases.noise_dn,
-        rejected=phases.rejected,
-        template=phases.template,
-    )
+    return int(np.count_nonzero(present))
+
+
+def _perspective(p: RulerParams, frame: RulerFrame, shape: tuple[int, int]) -> float:
+    """The prior standard deviation of the correction's perspective terms (``fit_correction``)."""
     focal = p.camera_matrix[0][0] if p.camera_matrix is not None else p.focal_px
-    period = 1.0 / float(np.hypot(*frame.gradient(gray.shape[1] / 2.0, gray.shape[0] / 2.0)[0]))
-    perspective = math.tan(math.radians(p.max_tilt_deg)) * period / focal
-    return int(present.sum()), kept, fit_correction(w, kept, perspective=perspective)
+    period = 1.0 / float(np.hypot(*frame.gradient(shape[1] / 2.0, shape[0] / 2.0)[0]))
+    return math.tan(math.radians(p.max_tilt_deg)) * period / focal
 
 
-def _corrected(frame: RulerFrame, correction: FrameCorrection, shape: tuple[int, int]) -> RulerFrame:
-    """The frame corrected, with ``t`` squared to ``s`` at the pattern's centre in view."""
+#: How far (periods) past a missing line's edge its blur can still reach a window (3 sigma of 0.08
+#: period, 4 px at the design's 50 px period: the hard preset's blur and 1.5 mm of f/4 defocus).
+END_BLUR_PERIODS = 0.25
+
+
+def _past_the_ends(layout: Plan, graduation: int, spec: RulerSpec) -> npt.NDArray[np.bool_]:
+    """The phase windows not wholly on the graduations: beyond a ruler's end the grating stops, so a
+    window reaching there, where the next line would have been, sees a cut profile, whose phase is not
+    the grating's (the code named the graduation at ``s = 0``; lines at whole ``s`` from 0 to
+    ``graduation_count - 1``)."""
+    reach = 1.0 - spec.line_width_mm / spec.pitch_mm / 2.0 - END_BLUR_PERIODS  # from a missing line
+    lowest = -reach - graduation
+    highest = spec.graduation_count - 1 + reach - graduation
+    starts, lengths = layout.window_starts, layout.window_lengths
+    return np.asarray((starts < lowest) | (starts + lengths > highest))
+
+
+def _pinhole(p: RulerParams, shape: tuple[int, int]) -> FloatArray:
+    """The camera matrix of the frame's pixel coordinates: the model's, or the nominal focal length with
+    the principal point at the image's centre."""
+    if p.camera_matrix is not None:
+        return np.asarray(p.camera_matrix, dtype=np.float64)
+    cx, cy = (shape[1] - 1) / 2.0, (shape[0] - 1) / 2.0
+    return np.array([[p.focal_px, 0.0, cx], [0.0, p.focal_px, cy], [0.0, 0.0, 1.0]])
+
+
+def _corrected(
+    frame: RulerFrame, correction: FrameCorrection, shape: tuple[int, int], pinhole: FloatArray
+) -> RulerFrame:
+    """The frame corrected, with ``t`` square to ``s`` on the ruler's plane (through ``pinhole``) and
+    kept at the pattern's centre in view."""
     moved = frame.corrected(correction.e, correction.s_centre)
     x, y = moved.image_of(correction.s_centre, 0.0)
     if not (0 <= x < shape[1] and 0 <= y < shape[0]):
         x, y = (shape[1] - 1) / 2.0, (shape[0] - 1) / 2.0
-    return moved.squared(x, y)
+    return moved.squared_in_plane(pinhole, x, y)
 
 
 Remap = Callable[[FloatArray], FloatArray]

@@ -49,7 +49,7 @@ class RulerParams(BaseModel):
         6800.0, gt=0, le=1e6, description="focal length (px) for that prior; the camera matrix's when given"
     )
     outlier_sigma: float = Field(
-        5.0, gt=2, le=50, description="bins this many sigmas off the model are dropped"
+        3.0, gt=2, le=50, description="bins this many sigmas off the model are dropped"
     )
     min_contrast_dn: float = Field(
         10.0, gt=0, le=255, description="weakest graduation contrast accepted (DN)"

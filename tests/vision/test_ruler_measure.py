@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim._render_camera import CameraSpec, pose_for_center_px
+from sim._render_camera import CameraSpec, Pose, pose_for_center_px
 from sim.ruler import RulerTruth, render_ruler
 from sim.ruler_imageset import random_ruler_views
 from station.vision import MeasurementError, RulerMeasurement, RulerParams, RulerSpec, measure_ruler
@@ -137,3 +137,19 @@ def test_bright_marks_are_read_as_such() -> None:
     assert abs(m.position_mm - truth.position_mm) * PX_PER_MM <= 0.006
     with pytest.raises(MeasurementError):
         measure_ruler(negative)  # read as dark marks: graduations between the lines, the code inverted
+
+
+@pytest.mark.parametrize("noise_seed", [1, 2])
+def test_a_ruler_end_cutting_the_windows_obliquely_does_not_pull_the_position(noise_seed: int) -> None:
+    # the ruler's start crosses the frame at 20 deg to the lines' tips (hard preset): the windows it
+    # cuts have too much contrast left to be taken for the bare ruler, and read 0.11-0.13 px off until
+    # the code's graduation number puts the end in the frame and the correction is fitted without them
+    pose = Pose(x_mm=-0.63, y_mm=0.11, rotation_deg=-161.16, tilt_x_deg=-0.06, tilt_y_deg=0.24)
+    image, truth = render_ruler(pose, anchor_mm=2.49, preset="hard", rng=np.random.default_rng(noise_seed))
+    m = measure_ruler(image)
+    position, offset, _ = _errors(m, truth)
+    u_px = m.extra["position_u_nm"] * 1e-6 * truth.px_per_mm
+    assert abs(position) <= 0.03, position
+    assert abs(position) <= 5 * u_px, (position, u_px)
+    assert abs(offset) <= 0.4, offset
+    assert m.extra["windows"]["cut_by_end"] > 0
