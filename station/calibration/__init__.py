@@ -31,7 +31,13 @@ from station.calibration._observations import (
     ObservationArrays,
     observation_arrays,
 )
-from station.calibration._result import SCHEMA_VERSION, CalibrationResult, ParameterEstimate, ResidualSummary
+from station.calibration._result import (
+    SCHEMA_VERSION,
+    CalibrationResult,
+    ParameterEstimate,
+    ResidualSummary,
+    load_kinematics,
+)
 from station.calibration._truth import equivalent_errors, true_values
 
 __all__ = [
@@ -60,6 +66,7 @@ __all__ = [
     "identify",
     "initial_artifacts",
     "joint_steps",
+    "load_kinematics",
     "observation_arrays",
     "pair_errors_um",
     "relative_error_um",

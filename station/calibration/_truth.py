@@ -18,6 +18,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import numpy.typing as npt
 
+from station.calibration._identifiability import reported_name
 from station.calibration._model import HAYATI_ROW, CalibrationModel
 from station.calibration._observations import FloatArray
 from station.kinematics import JOINTS, DHRow, Kinematics, rot_z, transform
@@ -107,8 +108,6 @@ def true_values(
 ) -> dict[str, float]:
     """A known true arm's value of every parameter, by reported name (natural units, ``d2+d3`` as the
     sum): what an identification's estimates are compared with in tests and benchmarks."""
-    from station.calibration._identifiability import reported_name
-
     values = model.nominal + equivalent_errors(model, true_dh, true_tool, true_artifacts)
     values[model.index["d2"]] += model.nominal[model.index["d3"]]
     return {reported_name(n) if n == "d2" else n: float(v) for n, v in zip(model.names, values, strict=True)}

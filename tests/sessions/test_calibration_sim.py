@@ -22,8 +22,7 @@ from typing import Any
 import pytest
 
 from sim.calibration_truth import truth_report
-from station.calibration import CalibrationResult
-from station.kinematics import Kinematics
+from station.calibration import CalibrationResult, load_kinematics
 from station.plans.calibration import calibration_cell_from_config
 from station.runner import stored_captures
 from station.session import SessionOutcome, open_record, run_session
@@ -104,7 +103,7 @@ def test_station_calibrate_identifies_the_stored_session_again(
     assert rel == pytest.approx(rel0, rel=1e-6)  # the same data, the same held-out draw: the same figures
     # the written parameter set loads as a calibrated arm, with the session's estimates
     saved = CalibrationResult.load(out)
-    kin = Kinematics.from_calibration(out)
+    kin = load_kinematics(out)
     assert [r.a_mm for r in kin.dh] == pytest.approx([r.a_mm for r in saved.kinematics().dh])
     assert saved.identified_count == outcome.results["identified_count"]
     # another hold-out draw: another split, figures of the same size
