@@ -148,8 +148,16 @@ def camera(rig: Rig) -> Camera:
     return cam
 
 
-def test_satisfies_the_protocol(rig: Rig) -> None:
-    assert isinstance(rig.camera(), Camera)
+def test_says_who_it_is_the_same_across_a_reconnect(rig: Rig) -> None:
+    cam = rig.camera()
+    assert isinstance(cam, Camera)
+    cam.connect()
+    identity = cam.identity()
+    assert identity.model or identity.serial or identity.port  # something names the device
+    assert cam.status().model  # and its status says which model answers
+    cam.close()
+    cam.connect()
+    assert cam.identity() == identity
 
 
 @pytest.mark.parametrize(("pixel_format", "dtype"), [("Mono8", np.uint8), ("Mono16", np.uint16)])
