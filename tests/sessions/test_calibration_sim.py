@@ -1,8 +1,8 @@
 """A calibration session on the simulated station, end to end, judged against the world's truth.
 
 The small configuration, built once for the module: the five artifacts of the sim cell, three camera
-turns and three joint solutions each (45 planned, 37 aligned configurations; about 90 s where four
-solutions, 51 configurations, took about 125 s). Two solutions leave the fit short of data (40 um after
+turns and three joint solutions each (45 planned, 37 aligned configurations; about 90 s, where four
+solutions, 51 planned and 49 aligned, took 135 s). Two solutions leave the fit short of data (40 um after
 calibration against a 14 um floor, 25 configurations), as two turns do. The issue's targets on it: the
 relative error with the calibrated model at least 10x smaller than with the nominal one and within 2x
 of the floor (the same figure with the true model; 17 um against 12 um measured); every identified
