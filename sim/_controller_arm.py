@@ -103,7 +103,7 @@ class _Motion:
 
 @dataclass(frozen=True)
 class ArmParameters:
-    """The arm model's settings (see :class:`sim.controller.TwinSettings` for their meaning)."""
+    """The arm model's settings (see :class:`sim._controller_settings.TwinSettings` for their meaning)."""
 
     max_speed_deg_s: tuple[float, ...]
     accel_deg_s2: tuple[float, ...]

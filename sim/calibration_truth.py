@@ -111,7 +111,8 @@ def pointing_errors_um(
     ``devices`` must be connected (robot, camera). None where the crossing is not measured (out of view
     or focus). The arm settles ``settle_s`` (wall time) before each capture.
     """
-    from station.calibration_session import calibration_setup, move_camera
+    from station.calibration_session import calibration_setup
+    from station.camera_moves import move_camera
     from station.plans.calibration import square_on
     from station.vision import MeasurementError, measure
 

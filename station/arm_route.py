@@ -17,7 +17,7 @@ Sessions take this route to their reference pose as their first motion (``statio
 keep-out) from the arm's actual commanded position before the first one is sent, so a route refused
 anywhere moves nothing.
 
-Only the device interfaces (``station/devices.py``) and the pure joint-space maths are used here: the
+Only the device interfaces (``station/devices/``) and the pure joint-space maths are used here: the
 drivers' CLI, the runner and the station worker all call it.
 """
 

@@ -25,7 +25,6 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import numpy.typing as npt
 
 from station.calibration import (
     CalibrationError,
@@ -35,11 +34,11 @@ from station.calibration import (
     crossing_positions,
     identify,
 )
+from station.camera_moves import move_camera
 from station.kinematics import Kinematics
 from station.plans import CaptureResult, PlanError
 
 if TYPE_CHECKING:
-    from station.devices import Robot
     from station.plans.calibration import CalibrationCell, CalibrationParams
 
 #: Capture kinds of a calibration session the identification uses ("align" frames are not).
@@ -215,37 +214,6 @@ __all__ = [
     "move_camera",
     "observations_from",
 ]
-
-
-def move_camera(
-    robot: Robot,
-    calibrated: Kinematics,
-    camera_pose: npt.ArrayLike,
-    *,
-    max_step_deg: float,
-    through_lift: bool = False,
-) -> list[tuple[float, ...]]:
-    """A compensated move: the camera to ``camera_pose`` (4x4, the calibrated model's base frame, mm) by
-    inverse kinematics with the calibrated model, sent as joint moves within ``max_step_deg`` each:
-    straight in joint space, or with ``through_lift`` up, across and down through the lift poses (the
-    calibration plan's route between artifacts).
-
-    The whole chain of waypoints is checked with ``check_move`` before the first is sent (a chain that
-    fails validation moves nothing). Returns the waypoints sent (deg, at the controller's resolution).
-    """
-    from station.calibration import compensated_joints
-    from station.plans.calibration import quantised, split_move, travel
-
-    start = tuple(float(a) for a in robot.where().commanded_joints_deg)
-    target = quantised(compensated_joints(calibrated, camera_pose, current_deg=start))
-    steps = (travel if through_lift else split_move)(start, target, max_step_deg)
-    previous = start
-    for q in steps:
-        robot.check_move(q, start_deg=previous)
-        previous = q
-    for q in steps:
-        robot.move_joints(q)
-    return steps
 
 
 __all__ = [

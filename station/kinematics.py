@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import logging
 import math
-import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -230,17 +229,6 @@ class Kinematics:
         if not np.allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-9):
             raise KinematicsError(f"{name} rotation is not orthonormal")
         return T
-
-    @classmethod
-    def from_calibration(cls, path: str | os.PathLike[str]) -> Kinematics:
-        """The calibrated arm, camera as the tool, from a calibration result's JSON file.
-
-        Raises ``station.calibration.CalibrationError`` (a ``ValueError``) for a missing, unreadable or
-        invalid file, or one of another schema version.
-        """
-        from station.calibration import CalibrationResult  # the calibration package imports this module
-
-        return CalibrationResult.load(path).kinematics()
 
     def with_tool(self, tool: npt.ArrayLike | None) -> Kinematics:
         """The same arm with another tool transform."""

@@ -1,12 +1,13 @@
 """GenICam cameras (GigE Vision, USB3 Vision) through Aravis 0.8, via PyGObject.
 
-``discover()`` lists the cameras Aravis sees; ``AravisCamera(camera_id)`` opens one by device id
-(``"Fake_1"``, ``"Aravis-Fake-GV02"``), serial number or IP address, in Mono8 or Mono16, with ROI,
-exposure, gain and frame rate. While open, the camera free-runs into a pool of ``buffer_count``
-buffers; ``grab`` returns the first frame whose transfer began after the call (Aravis' host
-timestamp), so nothing buffered during a robot move is ever returned, and raises ``FrameError`` for an
-incomplete or mis-sized frame. ``close`` stops acquisition and releases the stream before the camera
-(the other order aborts the process at exit); a finalizer does the same if ``close`` was forgotten.
+``discover()`` lists the cameras Aravis sees (``_aravis_lib``: loading Aravis, discovery, buffers);
+``AravisCamera(camera_id)`` opens one by device id (``"Fake_1"``, ``"Aravis-Fake-GV02"``), serial number or
+IP address, in Mono8 or Mono16, with ROI, exposure, gain and frame rate. While open, the camera free-runs
+into a pool of ``buffer_count`` buffers; ``grab`` returns the first frame whose transfer began after the
+call (Aravis' host timestamp), so nothing buffered during a robot move is ever returned, and raises
+``FrameError`` for an incomplete or mis-sized frame. ``close`` stops acquisition and releases the stream
+before the camera (the other order aborts the process at exit); a finalizer does the same if ``close`` was
+forgotten.
 
 Aravis' in-process fake camera (``Fake_1``, enabled on demand) and its GigE Vision simulator
 (``arv-fake-gv-camera-0.8``) are what the tests drive.
@@ -20,7 +21,6 @@ import threading
 import time
 import weakref
 from collections.abc import Callable
-from dataclasses import dataclass
 from types import ModuleType, TracebackType
 from typing import Any, TypeVar
 
@@ -33,109 +33,28 @@ from station.devices import (
     DeviceTimeoutError,
     Frame,
     FrameError,
-    ImageArray,
     InvalidSettingError,
     NotSupportedError,
     Roi,
     grab_frames,
 )
 
-from ._frames import Layout, check_pixel_format, image_from_bytes
+from ._aravis_lib import (
+    ARAVIS_API,
+    INSTALL_HINT,
+    PIXEL_FORMAT_CODES,
+    CameraInfo,
+    aravis_available,
+    discover,
+    image_from_buffer,
+    load_aravis,
+)
+from ._frames import Layout, check_pixel_format
 
 log = logging.getLogger(__name__)
 
-ARAVIS_API = "0.8"
-INSTALL_HINT = (
-    "install Aravis and PyGObject: apt-get install gir1.2-aravis-0.8 (tools/apt-packages.txt) and "
-    "pip install 'PyGObject<3.51' (the project's genicam extra); tools/setup.sh does both"
-)
-PIXEL_FORMAT_CODES = {"Mono8": 0x01080001, "Mono16": 0x01100007}
-"""PFNC codes of the supported pixel formats, as buffers report them."""
 
 T = TypeVar("T")
-
-
-def load_aravis() -> tuple[ModuleType, type[Exception]]:
-    """Aravis and GLib.Error, or DeviceConnectionError saying what to install."""
-    try:
-        import gi
-
-        gi.require_version("Aravis", ARAVIS_API)
-        from gi.repository import Aravis, GLib
-    except (ImportError, ValueError) as exc:
-        raise DeviceConnectionError(f"Aravis {ARAVIS_API} is not available ({exc}); {INSTALL_HINT}") from exc
-    return Aravis, GLib.Error
-
-
-def aravis_available() -> bool:
-    """Whether Aravis can be loaded here (for tests and diagnostics)."""
-    try:
-        load_aravis()
-    except DeviceConnectionError:
-        return False
-    return True
-
-
-@dataclass(frozen=True)
-class CameraInfo:
-    """A camera Aravis discovered."""
-
-    id: str
-    vendor: str
-    model: str
-    serial: str
-    address: str
-    protocol: str
-    physical_id: str
-
-
-def discover(*, include_fake: bool = False) -> list[CameraInfo]:
-    """The cameras Aravis sees now (GigE Vision on every interface, USB3 Vision).
-
-    ``include_fake`` also enables Aravis' in-process fake camera (``Fake_1``).
-    """
-    aravis, _ = load_aravis()
-    if include_fake:
-        aravis.enable_interface("Fake")
-    aravis.update_device_list()
-    found = [
-        CameraInfo(
-            id=aravis.get_device_id(i) or "",
-            vendor=aravis.get_device_vendor(i) or "",
-            model=aravis.get_device_model(i) or "",
-            serial=aravis.get_device_serial_nbr(i) or "",
-            address=aravis.get_device_address(i) or "",
-            protocol=aravis.get_device_protocol(i) or "",
-            physical_id=aravis.get_device_physical_id(i) or "",
-        )
-        for i in range(aravis.get_n_devices())
-    ]
-    log.debug("Aravis sees %d camera(s): %s", len(found), [c.id for c in found])
-    return found
-
-
-def image_from_buffer(buffer: Any, layout: Layout, *, aravis: ModuleType, source: str) -> ImageArray:
-    """The image in an Aravis buffer, checked against what the camera was set to deliver.
-
-    Raises FrameError for an incomplete frame (any status but SUCCESS), a buffer without an image, or
-    a size, pixel format or byte count that differs from ``layout``.
-    """
-    status = buffer.get_status()
-    if status != aravis.BufferStatus.SUCCESS:
-        raise FrameError(
-            f"{source}: incomplete frame ({status.value_nick}); on GigE check the link and packet size "
-            "(jumbo frames, arv-tool-0.8), and that the host keeps up with the frame rate"
-        )
-    if buffer.get_payload_type() != aravis.BufferPayloadType.IMAGE:
-        raise FrameError(f"{source}: the frame holds no image ({buffer.get_payload_type().value_nick})")
-    code = int(buffer.get_image_pixel_format())
-    size = (int(buffer.get_image_width()), int(buffer.get_image_height()))
-    if code != PIXEL_FORMAT_CODES[layout.pixel_format] or size != (layout.width, layout.height):
-        raise FrameError(
-            f"{source}: the frame is {size[0]}x{size[1]} pixel format {code:#010x}, the camera was set "
-            f"to {layout.describe()}; has something else changed its settings?"
-        )
-    return image_from_bytes(buffer.get_image_data(), layout, source=source)
 
 
 class _Handles:
@@ -543,3 +462,16 @@ class AravisCamera:
         )
         self._next_id += 1
         return frame
+
+
+__all__ = [
+    "ARAVIS_API",
+    "INSTALL_HINT",
+    "PIXEL_FORMAT_CODES",
+    "AravisCamera",
+    "CameraInfo",
+    "aravis_available",
+    "discover",
+    "image_from_buffer",
+    "load_aravis",
+]

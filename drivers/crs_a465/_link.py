@@ -16,7 +16,7 @@ from typing import Literal
 import serial
 from pydantic import BaseModel, ConfigDict, Field
 
-from drivers._serial import LINK_ERRORS, open_port
+from drivers._serial import LINK_ERRORS, SerialPort
 from station.devices import DeviceConnectionError, DeviceTimeoutError
 
 log = logging.getLogger(__name__)
@@ -62,17 +62,15 @@ class SerialTransport:
     ) -> None:
         self.settings = settings or LinkSettings()
         self._clock = clock
-        self._injected = isinstance(port, serial.SerialBase)
-        self._port_arg = port
-        self._serial: serial.SerialBase | None = port if isinstance(port, serial.SerialBase) else None
-        self.name = port if isinstance(port, str) else (getattr(port, "port", None) or type(port).__name__)
+        self._link = SerialPort(port)
+        self.name = self._link.name
         self._pending = bytearray()  # read past a prompt: the start of the next answer
 
     # ---------------------------------------------------------------- open / close
 
     @property
     def is_open(self) -> bool:
-        return self._serial is not None and bool(self._serial.is_open)
+        return self._link.is_open
 
     def open(self) -> None:
         """Open the port exclusively (a name or URL is opened with ``serial_for_url``).
@@ -82,9 +80,7 @@ class SerialTransport:
         if self.is_open:
             return
         s = self.settings
-        self._serial = open_port(
-            self._port_arg,
-            str(self.name),
+        self._link.open(
             timeout_s=s.poll_s,
             write_timeout_s=s.reply_timeout_s,
             baudrate=s.baudrate,
@@ -99,21 +95,11 @@ class SerialTransport:
     def close(self) -> None:
         """Close the port; safe to call twice."""
         self._pending.clear()
-        if self._serial is None:
-            return
-        try:
-            self._serial.close()
-        except LINK_ERRORS as exc:
-            log.debug("closing %s: %s", self.name, exc)
-        if not self._injected:
-            self._serial = None
+        self._link.close()
         log.debug("closed %s", self.name)
 
     def _port(self) -> serial.SerialBase:
-        if not self.is_open:
-            raise DeviceConnectionError(f"{self.name!r} is not open: connect() first")
-        assert self._serial is not None
-        return self._serial
+        return self._link.require(f"{self.name!r} is not open: connect() first")
 
     def _lost(self, exc: Exception) -> DeviceConnectionError:
         self.close()

@@ -145,7 +145,7 @@ def _run_command(robot: CrsA465, args: argparse.Namespace) -> None:
 
 
 def _move_camera(robot: CrsA465, args: argparse.Namespace) -> None:
-    from station.calibration_session import move_camera
+    from station.camera_moves import move_camera
     from station.kinematics import pose_from_world_row
 
     pose = pose_from_world_row(args.pose)
@@ -264,10 +264,10 @@ def _settings(args: argparse.Namespace) -> dict[str, Any]:
             names = ",".join(_cli_station.CHECK_NAMES)
             raise _BadOptionError(f"--checks: unknown {unknown}; choose from {names}")
     if getattr(args, "calibration", None) is not None:
-        from station.kinematics import Kinematics
+        from station.calibration import load_kinematics
 
         try:
-            args.calibrated = Kinematics.from_calibration(args.calibration)
+            args.calibrated = load_kinematics(args.calibration)
         except (OSError, ValueError) as exc:
             raise _BadOptionError(f"--calibration {args.calibration}: {exc}") from None
     baud = _number("--baud", args.baud, int)

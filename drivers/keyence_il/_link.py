@@ -14,7 +14,7 @@ from typing import Literal
 import serial
 from pydantic import BaseModel, ConfigDict, Field
 
-from drivers._serial import LINK_ERRORS, open_port
+from drivers._serial import LINK_ERRORS, SerialPort
 from station.devices import DeviceConnectionError, DeviceTimeoutError
 
 log = logging.getLogger(__name__)
@@ -42,23 +42,17 @@ class LineLink:
 
     def __init__(self, port: str | serial.SerialBase, settings: LinkSettings | None = None) -> None:
         self.settings = settings or LinkSettings()
-        self._injected = isinstance(port, serial.SerialBase)
-        self._port_arg = port
-        self._serial: serial.SerialBase | None = port if isinstance(port, serial.SerialBase) else None
-        self.name = port if isinstance(port, str) else (getattr(port, "port", None) or type(port).__name__)
+        self._link = SerialPort(port)
+        self.name = self._link.name
 
     @property
     def is_open(self) -> bool:
-        return self._serial is not None and bool(self._serial.is_open)
+        return self._link.is_open
 
     def open(self) -> None:
         """Open the port exclusively (a name, pty path or pyserial URL); a second call does nothing."""
-        if self.is_open:
-            return
         s = self.settings
-        self._serial = open_port(
-            self._port_arg,
-            str(self.name),
+        self._link.open(
             timeout_s=s.poll_s,
             write_timeout_s=s.reply_timeout_s,
             baudrate=s.baudrate,
@@ -69,14 +63,7 @@ class LineLink:
 
     def close(self) -> None:
         """Close the port; safe to call twice."""
-        if self._serial is None:
-            return
-        try:
-            self._serial.close()
-        except LINK_ERRORS as exc:
-            log.debug("closing %s: %s", self.name, exc)
-        if not self._injected:
-            self._serial = None
+        self._link.close()
 
     def _lost(self, exc: Exception) -> DeviceConnectionError:
         self.close()
@@ -92,10 +79,7 @@ class LineLink:
         the command just sent. Bytes that are not ASCII come back as U+FFFD (the caller's parser then
         refuses the line).
         """
-        if not self.is_open:
-            raise DeviceConnectionError(f"the distance sensor on {self.name!r} is not open: connect() first")
-        port = self._serial
-        assert port is not None
+        port = self._link.require(f"the distance sensor on {self.name!r} is not open: connect() first")
         s = self.settings
         try:
             if port.in_waiting:

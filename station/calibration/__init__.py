@@ -44,6 +44,7 @@ from station.calibration._result import (
     ParameterEstimate,
     ResidualSummary,
     RulerResidualSummary,
+    load_kinematics,
 )
 from station.calibration._ruler_observations import RulerArrays, RulerObservation, ruler_arrays
 from station.calibration._scale_check import MagnificationCheck, magnification_check
@@ -88,6 +89,7 @@ __all__ = [
     "initial_artifacts",
     "initial_rulers",
     "joint_steps",
+    "load_kinematics",
     "magnification_check",
     "observation_arrays",
     "pair_errors_um",

@@ -28,7 +28,7 @@ def compensated_joints(
     Parameters
     ----------
     calibrated
-        The calibrated arm with the camera as its tool (``Kinematics.from_calibration``).
+        The calibrated arm with the camera as its tool (``load_kinematics``).
     camera_pose
         4x4 requested camera pose, the calibrated model's base frame (mm).
     current_deg

@@ -143,7 +143,7 @@ def identify(
     Returns
     -------
     CalibrationResult
-        Everything the record, the report and ``Kinematics.from_calibration`` need.
+        Everything the record, the report and ``load_kinematics`` need.
 
     Raises
     ------

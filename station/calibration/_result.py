@@ -1,5 +1,5 @@
 """The calibrated parameter set: one versioned JSON document, written by ``identify`` and read back by
-``Kinematics.from_calibration``, the CLI's ``--json`` and the report (format: CALIBRATION.md)."""
+``load_kinematics``, the CLI's ``--json`` and the report (format: CALIBRATION.md)."""
 
 from __future__ import annotations
 
@@ -286,6 +286,17 @@ class CalibrationResult(_Model):
         return cls.from_json(text, source=str(p))
 
 
+def load_kinematics(path: str | os.PathLike[str]) -> Kinematics:
+    """The calibrated arm, camera as the tool, from a calibration result's JSON file.
+
+    Raises
+    ------
+    CalibrationError
+        (a ``ValueError``) for a missing, unreadable or invalid file, or one of another schema version.
+    """
+    return CalibrationResult.load(path).kinematics()
+
+
 __all__ = [
     "SCHEMA_VERSION",
     "CalibrationResult",
@@ -298,4 +309,5 @@ __all__ = [
     "ParameterEstimate",
     "ResidualSummary",
     "RulerResidualSummary",
+    "load_kinematics",
 ]

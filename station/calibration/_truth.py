@@ -21,6 +21,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import numpy.typing as npt
 
+from station.calibration._identifiability import reported_name
 from station.calibration._model import HAYATI_ROW, CalibrationModel
 from station.calibration._observations import FloatArray
 from station.calibration._start import rotation_angles
@@ -138,8 +139,6 @@ def true_values(
     """A known true arm's value of every parameter, by reported name (natural units, ``d2+d3`` as the
     sum): what an identification's estimates are compared with in tests and benchmarks (the rulers and
     the camera as :func:`equivalent_errors` takes them)."""
-    from station.calibration._identifiability import reported_name
-
     delta = equivalent_errors(
         model, true_dh, true_tool, true_artifacts, true_rulers=true_rulers, true_camera=true_camera
     )

@@ -4,16 +4,10 @@ not the record, the reports or the service (about 1 s of start-up per run)."""
 
 from __future__ import annotations
 
-import argparse
 import importlib
-from collections.abc import Callable, Iterable
-from typing import TYPE_CHECKING
+from collections.abc import Iterable
 
-if TYPE_CHECKING:
-    SubParsers = argparse._SubParsersAction[argparse.ArgumentParser]
-else:
-    SubParsers = argparse._SubParsersAction
-Register = Callable[[SubParsers], None]
+from station.commands._parsing import Register, SubParsers
 
 #: Sub-command -> the module that defines it, in the order ``station --help`` lists them.
 CORE_COMMANDS: dict[str, str] = {
@@ -39,3 +33,6 @@ def registers(commands: Iterable[str] | None = None) -> list[Register]:
     modules = dict.fromkeys(CORE_COMMANDS[c] for c in wanted)
     loaded = [importlib.import_module(f"station.commands.{m}") for m in modules]
     return [module.register for module in loaded]
+
+
+__all__ = ["CORE_COMMANDS", "Register", "SubParsers", "registers"]

@@ -6,7 +6,7 @@ with another hold-out draw (``--param seed=3``) or after a software update. It r
 captures, its configuration snapshot (the cell: artifacts, optics, the sensor's mount) and its plan
 parameters, and prints the same results object as ``station run calibration``; ``--json`` prints
 ``{"id", "kind", "state", "results", "error"}``: ``station run --json``'s model. ``--out FILE`` writes
-the calibrated parameter set (versioned JSON) that ``Kinematics.from_calibration(FILE)`` and
+the calibrated parameter set (versioned JSON) that ``station.calibration.load_kinematics(FILE)`` and
 ``station robot ... move-camera ... --calibration FILE`` load. Nothing is moved, nothing in the record
 is changed.
 Exit 0 on success, 1 when the identification fails, 2 for usage errors (unknown session, wrong kind).
@@ -19,8 +19,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from station.commands import SubParsers
-from station.commands.run import add_record_options, parse_params, summary
+from station.commands._parsing import SubParsers, add_record_options
+from station.commands.run import parse_params, summary
 from station.plans import PlanError
 
 

@@ -14,8 +14,8 @@ from typing import Any
 
 from station import config
 from station.camera_model import check_image_size, read_camera_model
-from station.commands import SubParsers
 from station.commands._common import bounded_int, finite_float
+from station.commands._parsing import SubParsers
 from station.devices import Camera, DeviceError, ExposureAdjustable
 from station.imageio import ImageFileError, check_output_path, write_image
 

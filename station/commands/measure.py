@@ -10,7 +10,6 @@ from tqdm import tqdm
 
 from station import scale_calibration
 from station.batch import FileResult, default_jobs
-from station.commands import SubParsers
 from station.commands._common import (
     SMALL_FILE_MAX_BYTES,
     add_compute_options,
@@ -19,6 +18,7 @@ from station.commands._common import (
     finite_float,
     params_from_args,
 )
+from station.commands._parsing import SubParsers
 from station.commands._ruler_options import add_artifact_options, ruler_params_from_args, ruler_rows
 from station.compute import ComputeError, ComputeSpec, open_backend
 from station.imageio import (

@@ -18,8 +18,8 @@ from collections.abc import Sequence
 from typing import Any
 
 from station.batch import max_jobs
-from station.commands import SubParsers
 from station.commands._common import add_compute_options, compute_spec
+from station.commands._parsing import SubParsers, add_record_options
 from station.config import ConfigurationError
 from station.devices import DeviceError
 from station.plans import PLAN_NAMES, PlanError
@@ -29,13 +29,6 @@ from station.runner import SessionError, SessionRunner
 from station.scale_calibration import ScaleCalibrationError
 from station.session import run_session
 from station.vision import parse_assignments
-
-
-def add_record_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument(
-        "--data", metavar="DIR", help="data directory (default: $STATION_DATA, else ./station-data)"
-    )
-    p.add_argument("--database", metavar="URL", help="SQLAlchemy URL of the record (default: SQLite in DIR)")
 
 
 def register(sub: SubParsers) -> None:

@@ -15,8 +15,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from station.commands import SubParsers
-from station.commands.run import add_record_options
+from station.commands._parsing import SubParsers, add_record_options
 from station.record import (
     ImportRefusedError,
     NoRecordError,

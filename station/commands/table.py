@@ -10,8 +10,8 @@ import sys
 import threading
 
 from station import config
-from station.commands import SubParsers
 from station.commands._common import finite_float
+from station.commands._parsing import SubParsers
 from station.devices import DeviceError
 from station.prompts import PromptBroker, PromptEvent
 

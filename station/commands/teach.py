@@ -28,7 +28,7 @@ import sys
 from typing import Any
 
 from station import config
-from station.commands import SubParsers
+from station.commands._parsing import SubParsers
 from station.devices import DeviceError
 
 __all__ = ["register", "run"]

@@ -7,8 +7,8 @@ import json
 import sys
 
 from station.batch import default_jobs
-from station.commands import SubParsers
 from station.commands._common import add_measure_options, params_from_args
+from station.commands._parsing import SubParsers
 from station.imagesets import ImageSetError, load_set
 from station.report import validation_report
 from station.validation import CALIBRATIONS, ValidationError, validate

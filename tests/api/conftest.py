@@ -78,25 +78,57 @@ def data_dir(tmp_path: Path) -> Path:
     return tmp_path / "data"
 
 
-@pytest.fixture
-def make_served(data_dir: Path) -> Iterator[ServeFactory]:
-    """``make_served(sim=True, manual=False, public_read=False, limits=None, database=None,
-    **sim_options)`` -> a running server."""
-    started: list[Served] = []
+#: Test modules whose tests share one service per set of ``make_served`` options (a module's service,
+#: in a data directory of the module's), and which of their services: those tests only read, measure or
+#: are refused, so that none changes what another sees, in any order. Every other service is one test's
+#: own (a test that starts sessions, imports, injects faults or counts files needs its own).
+SHARED_SERVICES: dict[str, Callable[[dict[str, Any]], bool]] = {
+    "tests.api.test_measure": lambda options: not options,  # the default service: it only measures
+    "tests.api.test_fuzz": lambda options: not options,  # reads the schema; the fuzzer is refused or reads
+    "tests.api.test_auth": lambda options: options == {"sim": False},  # the offline one: reads, refusals
+}
 
-    def make(
-        *,
-        sim: bool = True,
-        manual: bool = False,
-        public_read: bool = False,
-        limits: ServeLimits | None = None,
-        database: str | None = None,
-        **sim_options: Any,
-    ) -> Served:
+
+@pytest.fixture(scope="module")
+def module_services(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Served]]:
+    """The services a module's tests share (see ``SHARED_SERVICES``), stopped after its last test."""
+    shared: dict[str, Served] = {}
+    yield shared
+    for s in shared.values():
+        s.stop()
+
+
+@pytest.fixture
+def make_served(
+    request: pytest.FixtureRequest,
+    data_dir: Path,
+    module_services: dict[str, Served],
+    tmp_path_factory: pytest.TempPathFactory,
+) -> Iterator[ServeFactory]:
+    """``make_served(sim=True, manual=False, public_read=False, limits=None, database=None,
+    **sim_options)`` -> a running server (the module's shared one where ``SHARED_SERVICES`` says so)."""
+    started: list[Served] = []
+    shares = SHARED_SERVICES.get(request.module.__name__)
+
+    def build(options: dict[str, Any], data: Path) -> Served:
+        sim_options = dict(options)
+        sim = sim_options.pop("sim", True)
+        manual = sim_options.pop("manual", False)
+        public_read = sim_options.pop("public_read", False)
+        limits = sim_options.pop("limits", None)
+        database = sim_options.pop("database", None)
         settings = ServiceSettings(
-            sim=sim, manual_prompts=manual, data=data_dir, database=database, sim_options=sim_options
+            sim=sim, manual_prompts=manual, data=data, database=database, sim_options=sim_options
         )
-        served = serve(StationService(settings), Access(TOKEN, public_read), limits=limits)
+        return serve(StationService(settings), Access(TOKEN, public_read), limits=limits)
+
+    def make(**options: Any) -> Served:
+        if shares is not None and shares(options):
+            key = repr(sorted(options.items()))
+            if key not in module_services:
+                module_services[key] = build(options, tmp_path_factory.mktemp("shared") / "data")
+            return module_services[key]
+        served = build(options, data_dir)
         started.append(served)
         return served
 

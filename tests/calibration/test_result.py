@@ -1,4 +1,4 @@
-"""The calibrated parameter set as JSON: round trip, versioning, Kinematics.from_calibration."""
+"""The calibrated parameter set as JSON: round trip, versioning, load_kinematics."""
 
 from __future__ import annotations
 
@@ -10,8 +10,7 @@ from numpy.testing import assert_allclose
 
 import station
 from sim import calibration_sessions as synthetic
-from station.calibration import SCHEMA_VERSION, CalibrationError, CalibrationResult
-from station.kinematics import Kinematics
+from station.calibration import SCHEMA_VERSION, CalibrationError, CalibrationResult, load_kinematics
 
 
 def test_json_round_trip_keeps_every_field(fitted, tmp_path):
@@ -31,9 +30,9 @@ def test_json_round_trip_keeps_every_field(fitted, tmp_path):
     assert np.array_equal(np.asarray(loaded.sensor_mount), synthetic.MOUNT)
 
 
-def test_from_calibration_gives_the_calibrated_arm_with_the_camera_as_tool(fitted, tmp_path):
+def test_load_kinematics_gives_the_calibrated_arm_with_the_camera_as_tool(fitted, tmp_path):
     path = fitted.result.save(tmp_path / "calibration.json")
-    kin = Kinematics.from_calibration(path)
+    kin = load_kinematics(path)
     q = np.array([o.joints_deg for o in fitted.observations[:10]])
     assert_allclose(kin.tool_pose(q), fitted.result.kinematics().tool_pose(q), rtol=0, atol=1e-12)
     assert kin.dh[2].beta_deg == fitted.result.calibrated_dh[2].beta_deg != 0.0
@@ -46,7 +45,7 @@ def test_load_refuses_another_schema_version_saying_what_to_do(fitted, tmp_path)
     path = tmp_path / "future.json"
     path.write_text(json.dumps(data), encoding="utf-8")
     with pytest.raises(CalibrationError, match="re-run the identification"):
-        Kinematics.from_calibration(path)
+        load_kinematics(path)
 
 
 @pytest.mark.parametrize(

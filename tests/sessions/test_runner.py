@@ -116,18 +116,24 @@ def test_preflight_refuses_an_unpowered_arm(record: Record) -> None:
 def test_pause_waits_at_a_safe_point_and_resume_continues(record: Record, fake: FakeStation) -> None:
     r, log = runner(record, fake, "repeatability", cycles=3, warmup_cycles=0, joints=[1])
     paused = threading.Event()
+    moved_while_paused = threading.Event()
 
     def on_event(e: Any) -> None:
         if e.type == "step_finished" and e.data["index"] == 0:
             r.pause()
-        if e.type == "state" and e.data["state"] == "paused":
-            paused.set()
+        if e.type == "state":
+            if e.data["state"] == "paused":
+                paused.set()
+            elif paused.is_set():
+                paused.clear()
+        if paused.is_set() and e.type in {"step_started", "step_finished", "position"}:
+            moved_while_paused.set()  # a step went on while paused: the runner did not wait
 
     r.subscribe(on_event)
     thread = r.start()
     assert paused.wait(30)
     done_while_paused = r.progress().done
-    time.sleep(0.2)
+    assert not moved_while_paused.wait(0.2)
     assert r.progress().done == done_while_paused
     assert r.state is RunnerState.PAUSED
     r.resume()

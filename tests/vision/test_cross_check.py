@@ -3,7 +3,7 @@
 The cross check reads where a groove ends from its two walls over a stretch of steps, so that bright
 specks, chips in the paint and their glints (the ``hard-specks`` preset) near the frame's border do
 not end an arm there; a T-junction (an arm of bare land) stays refused, also on that preset and when
-its missing arm is short. ``tests/test_hostile_cross.py`` holds the T-junctions and two-cross frames
+its missing arm is short. ``tests/security/test_hostile_cross.py`` holds the T-junctions and two-cross frames
 of issue 13, which must stay refused too.
 """
 

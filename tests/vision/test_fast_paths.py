@@ -17,8 +17,8 @@ from numpy.testing import assert_allclose, assert_array_equal
 from sim.artifact import pose_for_center_px, render
 from station.vision import EDGES, Edge, apply_threshold, directional_responses, intensity_moment, segment_edge
 from station.vision._coarse import Illumination, fast_median, reduce_4x
+from station.vision._edge_fit import _Groups
 from station.vision._edges import operator_responses, threshold_level
-from station.vision._precise import _Groups
 from station.vision._testbox import scan_columns, segment_edge_sparse
 
 

@@ -25,7 +25,7 @@ from drivers.crs_a465 import (
 )
 from sim.controller import ControllerTwin
 from station import config
-from station.devices import DeviceBusyError, MotionStoppedError, Robot, StopLatchedError
+from station.devices import DeviceBusyError, MotionRejectedError, MotionStoppedError, Robot, StopLatchedError
 from station.kinematics import Kinematics, world_row
 from tests.drivers.crs_a465.conftest import FAST_LINK, TWIN_MOTION
 from tests.drivers.crs_a465.fakes import READY
@@ -38,8 +38,20 @@ def twin_in(make_twin, mode: str, **settings) -> ControllerTwin:
     return make_twin(motion_blocks=mode == "blocking", **settings)
 
 
-def test_the_driver_is_a_robot(make_twin, robot_on, mode):
-    assert isinstance(robot_on(twin_in(make_twin, mode)), Robot)
+def test_the_driver_is_a_robot_that_checks_a_move_without_sending_it(make_twin, robot_on, mode):
+    twin = twin_in(make_twin, mode)
+    robot = robot_on(twin)
+    assert isinstance(robot, Robot)
+    identity = robot.identity()
+    assert identity.port == twin.port
+    assert identity.model  # the arm type armstat reported at connect
+    moves = len(twin.motion_log)
+    with pytest.raises(MotionRejectedError, match=r"joint 1 at 400\.000 deg is outside its limits"):
+        robot.check_move((400.0, 0.0, 90.0, 0.0, 90.0, 0.0))  # beyond J1's travel
+    robot.check_move(AWAY)  # a legal move passes the check
+    assert len(twin.motion_log) == moves  # checks moved nothing
+    assert not any(line.startswith("joint") for line in twin.received)
+    assert robot.where().commanded_joints_deg == READY
 
 
 def test_connect_reads_the_twins_state(make_twin, robot_on, mode):

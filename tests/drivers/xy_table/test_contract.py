@@ -15,7 +15,7 @@ import pytest
 from drivers.xy_table import ManualXYTable
 from sim.operator import SimOperator
 from sim.world import World
-from station.devices import MotionRejectedError, TablePosition, XYTable
+from station.devices import DeviceError, MotionRejectedError, TablePosition, XYTable
 from station.prompts import PromptBroker, PromptEvent
 
 HALF_DIVISION_MM = 0.0001 * 25.4
@@ -68,8 +68,24 @@ def table(case: TableCase) -> Iterator[XYTable]:
         _operators.pop().close()
 
 
-def test_satisfies_the_protocol(table: XYTable) -> None:
-    assert isinstance(table, XYTable)
+def test_connects_says_what_it_is_and_knows_no_position_before_a_move(
+    table: XYTable, case: TableCase
+) -> None:
+    table.connect()
+    table.connect()  # a second connect does nothing
+    assert table.identity().model
+    with pytest.raises(DeviceError, match="move_to"):
+        table.position()  # unknown, not a guess: the error says how to get one
+    x_max, y_max = case.travel_mm
+    table.check_target(x_max, y_max)  # inside the travel: nothing raised, nothing asked
+    with pytest.raises(MotionRejectedError, match="outside its travel"):
+        table.check_target(x_max + 0.1, 0.0)
+    with pytest.raises(MotionRejectedError):
+        table.check_target(float("nan"), 0.0)
+    with pytest.raises(DeviceError, match="move_to"):
+        table.position()  # checking a target moved nothing
+    table.close()
+    table.close()
 
 
 @pytest.mark.parametrize(("x_mm", "y_mm"), [(0.0, 0.0), (0.254, 0.0), (1.0, 2.5), (12.3456, 7.891)])

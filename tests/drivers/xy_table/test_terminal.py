@@ -138,10 +138,24 @@ def test_serve_answers_until_the_input_ends(broker: PromptBroker, runner: Thread
 
 
 def test_serve_stops_when_asked(broker: PromptBroker) -> None:
-    client, _ = _client(broker, "")
+    # Asked to stop before it starts: it returns without showing or answering the open prompt, though
+    # an Enter is waiting on its input.
+    handle = broker.ask("left for the page")
+    client, out = _client(broker, "\n")
     stop = threading.Event()
     stop.set()
-    client.serve(stop, poll_s=0.01)  # returns at once
+    client.serve(stop, poll_s=0.01)
+    assert out.getvalue() == ""
+    assert broker.current() == handle.prompt
+    broker.cancel(handle.id, reason="test over")
+    # Asked to stop while it waits for a prompt: it returns within its poll.
+    idle, _ = _client(broker, "\n")
+    stop = threading.Event()
+    serving = threading.Thread(target=idle.serve, args=(stop,), kwargs={"poll_s": 0.01})
+    serving.start()
+    stop.set()
+    serving.join(timeout=WAIT_S)
+    assert not serving.is_alive()
 
 
 @pytest.mark.parametrize(

@@ -17,7 +17,7 @@ import pytest
 
 from station.reporting import ReportError, ReportFiles, text_tables, write_report
 from station.reporting._figures import magnification, nice_floor
-from tests.reporting_sessions import session
+from tests.reporting.reporting_sessions import session
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 SVG_NS = "{http://www.w3.org/2000/svg}"

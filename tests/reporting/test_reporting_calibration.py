@@ -24,9 +24,9 @@ from station.record import Record
 from station.reporting import ReportError, ReportFiles, text_tables, write_report
 from station.reporting._figures import calibration_parameters_figure, calibration_residuals_figure
 from station.reporting._model import CalibrationResults, parse_session
-from tests.test_reporting import SVG_NS, check_files, embedded_svgs, not_blank
+from tests.reporting.test_reporting import SVG_NS, check_files, embedded_svgs, not_blank
 
-FIXTURE = Path(__file__).parent / "data" / "calibration_session.json"
+FIXTURE = Path(__file__).parents[1] / "data" / "calibration_session.json"
 FIGURES = ["calibration-residuals", "calibration-parameters", "calibration-singular-values"]
 
 
