@@ -77,6 +77,7 @@ class Access:
 
     token: str
     public_read: bool = False
+    remote_motion: bool = False
 
     def matches(self, candidate: str | None) -> bool:
         return candidate is not None and hmac.compare_digest(candidate.encode(), self.token.encode())
@@ -163,6 +164,38 @@ async def require_token(request: Request) -> None:
 async def stream_access(request: Request) -> None:
     """Dependency of the event streams: the token always (``public_read`` does not open them)."""
     _access(request).check(request, mutation=False)
+
+
+def peer_is_local(request: Request) -> bool:
+    """Whether the connection comes from the station itself: its peer (the TCP connection's, never a
+    header a client writes) a loopback address."""
+    return request.client is not None and is_loopback(request.client.host)
+
+
+def may_move(request: Request) -> bool:
+    """Whether this client may make the arm move: from the station itself, or any client with
+    ``station serve --allow-remote-motion``."""
+    return _access(request).remote_motion or peer_is_local(request)
+
+
+def check_motion(request: Request, what: str) -> None:
+    """403 ``remote_motion`` for a client on another machine unless ``--allow-remote-motion``."""
+    if not may_move(request):
+        peer = request.client.host if request.client is not None else "an unknown address"
+        raise ApiError(
+            403,
+            f"{what} moves the arm, and this request comes from {peer}, not from the station itself: "
+            "start it from the station (its page at 127.0.0.1, or station run there), or restart the "
+            "service with station serve --allow-remote-motion on a trusted network",
+            "remote_motion",
+        )
+
+
+async def motion_access(request: Request) -> None:
+    """Dependency of the routes that make the arm move: the token, and the station itself unless
+    ``--allow-remote-motion`` (pause, stop and abort do not need it: stopping is always allowed)."""
+    _access(request).check(request, mutation=True)
+    check_motion(request, "this request")
 
 
 async def read_access(request: Request) -> None:

@@ -46,6 +46,10 @@ class AccessModel(BaseModel):
         description="whether the request comes from the station itself (a loopback peer): only such a"
         " client may acknowledge a latched stop"
     )
+    motion: bool = Field(
+        description="whether this client may start or resume sessions that drive the devices and move the"
+        " arm: ``local``, or any client when the service runs with --allow-remote-motion"
+    )
 
 
 class PlanModel(BaseModel):

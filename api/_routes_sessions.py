@@ -12,7 +12,7 @@ from fastapi import APIRouter, Depends, Query, Request
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import FileResponse, Response
 
-from api._auth import read_access, require_token
+from api._auth import check_motion, may_move, read_access, require_token
 from api._deps import SessionId, service_of
 from api._errors import ApiError
 from api._models import (
@@ -27,6 +27,7 @@ from api._models import (
 from api._openapi import binary, problems
 from api._overlay import measurement_headers
 from api._routes_station import read_body, require_type
+from station.plans import PLAN_NAMES, get_plan
 
 router = APIRouter(prefix="/api/v1/sessions")
 
@@ -68,6 +69,12 @@ SESSION_LINKS = {
 """Where a created or imported session's id leads (OpenAPI links, which stateful clients follow)."""
 
 
+def drives_devices(kind: str) -> bool:
+    """Whether sessions of ``kind`` drive the station's devices (an unknown kind: no; it is refused
+    later with its own answer)."""
+    return kind in PLAN_NAMES and bool(get_plan(kind).needs)
+
+
 @router.post(
     "",
     status_code=201,
@@ -77,17 +84,22 @@ SESSION_LINKS = {
         201: {"description": "the session, started", "links": SESSION_LINKS},
         **problems(
             401,
-            403,
             409,
             503,
+            s403="a session that drives the station's devices, asked for from another machine "
+            "(``remote_motion``: only from the station itself unless ``--allow-remote-motion``), or a "
+            "cookie request from another page",
             s422="an unknown kind or a bad parameter (nothing created), or pre-flight found problems "
             "(preflight_failed, with problems; nothing moved)",
         ),
     },
 )
 async def create(request: Request, body: SessionCreate) -> Response:
-    """Create a session and start it (409 while another one runs)."""
+    """Create a session and start it (409 while another one runs). One that drives the station's devices
+    (the arm, the table) only from the station itself unless ``station serve --allow-remote-motion``."""
     service = service_of(request)
+    if drives_devices(body.kind):
+        check_motion(request, f"a {body.kind} session")
     view = await run_in_threadpool(service.create_session, body.kind, body.params, body.set)
     return rendered(session_model(view), 201)
 
@@ -151,10 +163,23 @@ async def get(request: Request, session_id: SessionId) -> Response:
     status_code=201,
     response_model=SessionModel,
     dependencies=[Depends(require_token)],
-    responses=problems(*ONE, s409="the session's state does not allow the action"),
+    responses=problems(
+        401,
+        404,
+        422,
+        503,
+        s403="resume of a session that drives the station's devices from another machine "
+        "(``remote_motion``), or a cookie request from another page",
+        s409="the session's state does not allow the action",
+    ),
 )
 async def act(request: Request, session_id: SessionId, body: ActionRequest) -> Response:
-    """pause, resume (also continues an interrupted session), stop, abort; 409 when the state forbids it."""
+    """pause, resume (also continues an interrupted session), stop, abort; 409 when the state forbids it.
+    Pause, stop and abort from anywhere with the token; resume as a start (``create``)."""
+    if body.action == "resume" and not may_move(request):
+        kind = (await quick(request, service_of(request).get_session, session_id)).row.kind
+        if drives_devices(kind):
+            check_motion(request, f"resuming a {kind} session")
     view = await run_in_threadpool(service_of(request).act, session_id, body.action)
     return rendered(session_model(view), 201)
 

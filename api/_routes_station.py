@@ -11,7 +11,7 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import Response
 from pydantic import BaseModel
 
-from api._auth import Access, is_loopback, read_access, require_token
+from api._auth import Access, is_loopback, motion_access, read_access, require_token
 from api._deps import service_of
 from api._errors import ApiError
 from api._gate import DecodeGate
@@ -42,7 +42,10 @@ async def access(request: Request) -> AccessModel:
     token, _ = granted.presented(request)
     peer = request.client.host if request.client is not None else ""
     return AccessModel(
-        authenticated=granted.matches(token), open_reads=granted.public_read, local=is_loopback(peer)
+        authenticated=granted.matches(token),
+        open_reads=granted.public_read,
+        local=is_loopback(peer),
+        motion=granted.remote_motion or is_loopback(peer),
     )
 
 
@@ -90,12 +93,13 @@ async def robot(request: Request) -> Response:
 @router.post(
     "/station/robot/to-reference",
     response_model=ToReferenceResult,
-    dependencies=[Depends(require_token)],
+    dependencies=[Depends(motion_access)],
     responses=problems(
         401,
-        403,
         502,
         503,
+        s403="from another machine (``remote_motion``: only from the station itself unless"
+        " ``--allow-remote-motion``), or a cookie request from another page",
         s409="a session runs (or the arm is already on its way)",
         s422="the route is refused by the driver's checks; nothing moved (``problems``)",
     ),

@@ -67,6 +67,13 @@ def register(sub: SubParsers) -> None:
         "camera); for a trusted network only",
     )
     p.add_argument(
+        "--allow-remote-motion",
+        action="store_true",
+        help="let clients on other machines (with the token) start and resume sessions and move the arm; "
+        "by default only clients on the station itself can, where someone sees the arm (pause, stop and "
+        "abort are always open to the token)",
+    )
+    p.add_argument(
         "--max-decoded-mb",
         type=float,
         default=DEFAULT_MAX_DECODED_BYTES / 2**20,
@@ -171,7 +178,15 @@ def serve(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         return _fail(f"cannot start: {_one_line(exc)}")
     limits = ServeLimits(max_decoded_bytes=int(args.max_decoded_mb * 2**20))
     hosts = AllowedHosts.of(names, bound=args.host)
-    app = create_app(service, Access(token=token, public_read=public_read), limits=limits, hosts=hosts)
+    remote_motion = args.allow_remote_motion or (config is not None and config.api.allow_remote_motion)
+    if remote_motion and not is_loopback(args.host):
+        log.warning(
+            "remote motion is allowed (--allow-remote-motion) and the service is bound to %s: any client "
+            "holding the token can start sessions that move the arm, from anywhere that reaches it",
+            args.host,
+        )
+    access = Access(token=token, public_read=public_read, remote_motion=remote_motion)
+    app = create_app(service, access, limits=limits, hosts=hosts)
     server = uvicorn.Server(server_config(app, limits, timeout_graceful_shutdown=5))
     original_startup = server.startup
 

@@ -148,6 +148,11 @@ class ApiConfig(BaseModel):
     open_reads: bool = Field(
         False, description="reads (sessions, images, the camera) without the token, as --public-read"
     )
+    allow_remote_motion: bool = Field(
+        False,
+        description="let clients on other machines start and resume sessions and move the arm, as"
+        " --allow-remote-motion (else only clients on the station itself: someone there sees the arm)",
+    )
 
 
 class ComputeConfig(BaseModel):

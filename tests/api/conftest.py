@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import threading
 import time
+import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -169,3 +170,16 @@ def acknowledge_stop(client: httpx.Client) -> dict[str, Any]:
     doc: dict[str, Any] = r.json()
     assert doc["acknowledged"] is True, doc
     return doc
+
+
+REMOTE_PEER = ("192.0.2.7", 50123)
+"""A connection's peer on another machine (TEST-NET-1)."""
+
+
+def remote_client(served: Served) -> Any:
+    """A client whose connection comes from another machine (peer ``REMOTE_PEER``), with the token:
+    Starlette's test client, on the served app, sets the peer as a TCP connection from there would."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # starlette.testclient's notice about its httpx dependency
+        from starlette.testclient import TestClient
+    return TestClient(served.app, base_url=served.base, client=REMOTE_PEER, headers=AUTH)

@@ -36,9 +36,10 @@ def test_access_says_whether_the_client_holds_the_token(make_served: ServeFactor
             served.client(token=False, headers=wrong) as mistaken,
         ):
             nobody = anonymous.get("/api/v1/access").json()
-            assert nobody == {"authenticated": False, "open_reads": open_reads, "local": True}
+            here = {"local": True, "motion": True}
+            assert nobody == {"authenticated": False, "open_reads": open_reads, **here}
             held = holder.get("/api/v1/access").json()
-            assert held == {"authenticated": True, "open_reads": open_reads, "local": True}
+            assert held == {"authenticated": True, "open_reads": open_reads, **here}
             assert logged_in.get("/api/v1/access").json()["authenticated"] is True
             assert mistaken.get("/api/v1/access").json()["authenticated"] is False
         served.stop()

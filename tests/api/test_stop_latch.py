@@ -5,16 +5,14 @@ station acknowledges it; a client on another machine cannot, whatever token it h
 from __future__ import annotations
 
 import time
-import warnings
 from typing import Any
 
 import pytest
 
-from tests.api.conftest import AUTH, Served, acknowledge_stop, wait_final
+from tests.api.conftest import Served, acknowledge_stop, remote_client, wait_final
 
 PARAMS: dict[str, Any] = {"cycles": 3, "joints": [1], "warmup_cycles": 0}
 REPEATABILITY: dict[str, Any] = {"kind": "repeatability", "params": PARAMS}
-REMOTE_PEER = ("192.0.2.7", 50123)  # TEST-NET-1: a machine other than the station
 
 
 def latched(c: Any, *, expect: bool) -> str | None:
@@ -25,15 +23,6 @@ def latched(c: Any, *, expect: bool) -> str | None:
         if robot["state"] == "idle" and (robot["latched"] is not None) == expect:
             return robot["latched"]
         time.sleep(0.1)
-
-
-def remote_client(served: Served) -> Any:
-    """A client whose connection comes from another machine (its peer address ``REMOTE_PEER``), with the
-    token: Starlette's test client sets the peer as a TCP connection from there would."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # starlette.testclient's notice about its httpx dependency
-        from starlette.testclient import TestClient
-    return TestClient(served.app, base_url=served.base, client=REMOTE_PEER, headers=AUTH)
 
 
 @pytest.mark.timeout(180)

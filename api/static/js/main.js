@@ -148,6 +148,7 @@ watch({ unreachable: suspect, unauthorized: () => recheckAccess() });
 
 document.addEventListener("DOMContentLoaded", async () => {
   setUpForm();
+  $("kind").addEventListener("change", () => updateControls()); // Start may depend on the kind (motion)
   setUpPrompt();
   setUpResults();
   setUpHistory(refresh);

@@ -6,7 +6,7 @@ import { api } from "./api.js";
 import { formInputs, formParams, showRefusal } from "./form.js";
 import { resumeRule } from "./kinds.js";
 import { updatePromptControls } from "./prompt.js";
-import { canAct, page } from "./state.js";
+import { canAct, drives, mayMove, page } from "./state.js";
 import { $, FINAL, RESUMABLE, duration } from "./util.js";
 
 const ACTIVE = new Set(["idle", "running", "pausing", "paused", "awaiting_operator", "stopping", "aborting"]);
@@ -86,17 +86,23 @@ export function updateControls() {
   const state = s ? s.state : null;
   const other = page.running && s && page.running !== s.id;
   $("pause").disabled = !(act && (state === "running" || state === "awaiting_operator"));
+  const moving = (kind) => mayMove() || !drives(kind);
   $("resume").disabled = !(
     act &&
+    s !== null &&
+    moving(s.kind) &&
     (state === "paused" || state === "pausing" || (RESUMABLE.has(state) && !page.running && !page.starting))
   );
   $("stop").disabled = !(act && ["running", "pausing", "paused", "awaiting_operator"].includes(state));
   $("abort").disabled = !(act && ACTIVE.has(state) && state !== "aborting" && state !== "idle");
-  $("start").disabled = !(act && !page.running && !page.starting);
+  $("start").disabled = !(act && !page.running && !page.starting && moving($("kind").value));
   for (const input of formInputs()) input.disabled = !act;
   let note = "";
   if (page.connection !== "ok") note = "The service is unreachable: every control is off until it answers again.";
   else if (!page.access?.authenticated) note = "Read-only: log in with the URL that station serve prints to control the station.";
+  else if (!mayMove() && ((s && drives(s.kind) && RESUMABLE.has(state)) || drives($("kind").value))) {
+    note = "This page is not on the station: it can pause, stop and abort, and start re-analyses and sweeps; sessions that move the arm start and resume only from the station itself (station serve --allow-remote-motion lets other machines).";
+  }
   else if (RESUMABLE.has(state) && page.running) note = `Resume is possible once session ${page.running} has ended.`;
   else if (RESUMABLE.has(state)) note = `Resume continues this session: ${resumeRule(s.kind)}`;
   else if (state === "awaiting_operator") {

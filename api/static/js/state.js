@@ -32,5 +32,15 @@ export const page = {
 /** Whether this client may act (it holds the token) and the service answers. */
 export const canAct = () => page.connection === "ok" && page.access?.authenticated === true;
 
+/** Whether this client may start or resume what moves the arm: it runs on the station itself, or the
+ * service allows remote motion (GET /access's `motion`). */
+export const mayMove = () => page.access?.motion === true;
+
+/** Whether sessions of `kind` drive the station's devices (an unknown plan counts as driving them). */
+export const drives = (kind) => {
+  const plan = page.plans.get(kind);
+  return !plan || plan.needs.length > 0;
+};
+
 /** Whether this client may read the station at all. */
 export const canRead = () => page.access !== null && (page.access.authenticated || page.access.open_reads);

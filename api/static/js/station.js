@@ -2,7 +2,7 @@
 // reads it between sessions), with "Move to the reference pose" whenever the arm is not at it.
 
 import { api } from "./api.js";
-import { canAct, page } from "./state.js";
+import { canAct, mayMove, page } from "./state.js";
 import { $, clock, el, num } from "./util.js";
 
 let refresh = () => {};
@@ -65,7 +65,7 @@ export function updateRobotControls() {
   $("latch-remote").hidden = local;
   const show = Boolean(r && r.at_reference === false && !page.running && r.state === "idle" && !latched);
   $("to-reference").hidden = !show;
-  $("to-reference").disabled = !(show && canAct());
+  $("to-reference").disabled = !(show && canAct() && mayMove());
   if (!show) $("to-reference-confirm").hidden = true;
   $("to-reference-no").disabled = !canAct();
   // Move now only once the route is read and refuses nothing
