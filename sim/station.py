@@ -252,6 +252,7 @@ def build_sim_station(
     operator_delay_s: float = 0.0,
     operator: bool = True,
     sensor_mount: SensorMount | None = SIM_SENSOR_MOUNT,
+    max_speed_pct: float = SIM_MAX_SPEED_PCT,
     **twin_options: Any,
 ) -> StationDevices:
     """Device factory (``station.sim``): the whole simulated station, built but not connected.
@@ -261,7 +262,8 @@ def build_sim_station(
     (``operator=False``: by a person through the API, the world's micrometers then follow what they
     confirm). The Z distance sensor twin (a Keyence IL-065 behind a DL-RS1A) runs on its own pty at
     ``sensor_mount`` in the camera frame, read by the real driver (``sensor_mount=None``: no sensor).
-    ``truth`` is the :class:`SimStation` (tests and benchmarks only).
+    ``max_speed_pct``: the cell's speed cap (``[robot] safety``). ``truth`` is the :class:`SimStation`
+    (tests and benchmarks only).
     """
     sim = SimStation(
         spec,
@@ -278,7 +280,7 @@ def build_sim_station(
             follower = MicrometerFollower(sim.broker, sim.world, origin_in=SIM_TABLE_ORIGIN_IN)
             sim.camera.before_grab = follower.sync
             sim.follower = follower
-        safety = sim_safety(sim.world)
+        safety = {**sim_safety(sim.world), "max_speed_pct": max_speed_pct}
         reference = tuple(float(a) for a in sim.world.spec.reference_joints_deg)
         sensor_config: DistanceSensorConfig | None = None
         sensor: DistanceSensor | None = None

@@ -739,6 +739,15 @@ class SessionRunner:
                         except MotionRejectedError as exc:
                             problems.append(f"{step.name}: {exc}")
                     previous = action.target_deg
+            speeds: set[float] = set()
+            for step in steps:  # every speed the plan sets, against the station's cap (the driver's check)
+                for action in step.actions:
+                    if isinstance(action, SetSpeed) and action.percent not in speeds:
+                        speeds.add(action.percent)
+                        try:
+                            robot.check_speed(action.percent)
+                        except MotionRejectedError as exc:
+                            problems.append(f"{step.name}: {exc}")
         table = devices.table if devices is not None else None
         if table is not None and uses_table:
             checked: set[tuple[float, float]] = set()

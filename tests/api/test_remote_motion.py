@@ -5,13 +5,15 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from typing import Any
 
 import pytest
 
 from api import Access
-from tests.api.conftest import Served, acknowledge_stop, remote_client, wait_final
+from tests.api.conftest import Served, ServeFactory, acknowledge_stop, remote_client, wait_final
 
-REPEATABILITY = {"kind": "repeatability", "params": {"cycles": 30, "joints": [1], "warmup_cycles": 0}}
+PARAMS: dict[str, Any] = {"cycles": 30, "joints": [1], "warmup_cycles": 0}
+REPEATABILITY: dict[str, Any] = {"kind": "repeatability", "params": PARAMS}
 
 
 @pytest.mark.timeout(180)
@@ -61,3 +63,29 @@ def test_a_remote_client_may_stop_the_arm_but_not_move_it_unless_allowed(served:
         # the stop it latched is still released only at the station
         assert remote.post("/api/v1/station/robot/acknowledge").status_code == 403
         acknowledge_stop(c)
+
+
+def test_a_plan_above_the_cells_speed_cap_is_refused_at_pre_flight(make_served: ServeFactory) -> None:
+    """Repeatability's default speed is 80 %; under a 50 % cap pre-flight refuses it, naming the cap and
+    where it is set, before anything moves; at 50 % it runs."""
+    served = make_served(max_speed_pct=50.0)
+    with served.client() as c:
+        r = c.post("/api/v1/sessions", json={**REPEATABILITY, "params": {**PARAMS, "cycles": 3}})
+        assert r.status_code == 422, r.text
+        assert r.json()["code"] == "preflight_failed"
+        problem = " ".join(r.json()["problems"])
+        assert "80" in problem
+        assert "50" in problem
+        assert "max_speed_pct" in problem
+        assert served.service.in_worker(motions) == 0  # nothing moved
+        r = c.post(
+            "/api/v1/sessions", json={**REPEATABILITY, "params": {**PARAMS, "cycles": 3, "speed_pct": 50}}
+        )
+        assert r.status_code == 201, r.text
+        done = wait_final(c, r.json()["id"])
+        assert done["state"] == "succeeded", done["error"]
+
+
+def motions(host: Any) -> int:
+    """The controller twin's motions so far (in the station's worker)."""
+    return len(host.devices.truth.twin.motion_log)
