@@ -21,12 +21,14 @@ from api._models import (
     SessionCreate,
     SessionList,
     SessionModel,
+    SessionPage,
     rendered,
     session_model,
 )
 from api._openapi import binary, problems
 from api._overlay import measurement_headers
 from api._routes_station import read_body, require_type
+from station.kinds import table_rows
 
 router = APIRouter(prefix="/api/v1/sessions")
 
@@ -105,7 +107,7 @@ async def list_sessions(
     # waiting on the runner) run on the loop: a hop to the thread pool and back costs more than the read;
     # a database server's in the thread pool (one that went away may keep a connection waiting)
     views, total = await quick(request, service_of(request).list_sessions, limit=limit, offset=offset)
-    return rendered(SessionList.model_construct(items=[session_model(v) for v in views], total=total))
+    return rendered(SessionPage.model_construct(items=[session_model(v) for v in views], total=total))
 
 
 @router.post(
@@ -195,65 +197,6 @@ async def results(request: Request, session_id: SessionId, format: Literal["json
         media_type="text/csv",
         headers={"Content-Disposition": f'attachment; filename="{outcome.id}-{outcome.kind}.csv"'},
     )
-
-
-def table_rows(kind: str, results: dict[str, Any]) -> list[dict[str, Any]]:
-    """The per-position rows of a validation, the per-cycle rows of a repeatability session, the
-    per-parameter rows of a calibration, the per-trial rows of a sweep; a re-analysis's as its kind's."""
-    if kind == "reanalyse":
-        inner = results.get("kind")
-        body = results.get(inner) if isinstance(inner, str) else None
-        return table_rows(inner, body) if isinstance(inner, str) and isinstance(body, dict) else []
-    if kind == "calibration":
-        return [_parameter_row(p) for p in results.get("parameters") or [] if isinstance(p, dict)]
-    if kind == "sweep":
-        return [_flat(t) for t in results.get("trials") or [] if isinstance(t, dict)]
-    if kind == "validation":
-        return [_flat(p) for p in results.get("positions", [])]
-    if kind == "repeatability":
-        out = []
-        for test, body in (results.get("tests") or {}).items():
-            points = body.get("points_mm") or body.get("points") or []
-            cycles = body.get("cycles") or list(range(len(points)))
-            for cycle, point in zip(cycles, points, strict=False):
-                out.append(
-                    {
-                        "test": test,
-                        "cycle": cycle,
-                        **{f"{a}_mm": v for a, v in zip("xyz", point, strict=False)},
-                    }
-                )
-        return out
-    return []
-
-
-def _parameter_row(p: dict[str, Any]) -> dict[str, Any]:
-    """One identified (or fixed) parameter of a calibration: its 95 % interval as two columns."""
-    interval = p.get("interval") or [None, None]
-    return {
-        "name": p.get("name"),
-        "unit": p.get("unit"),
-        "nominal": p.get("nominal"),
-        "estimate": p.get("estimate"),
-        "interval_low": interval[0],
-        "interval_high": interval[1],
-        "sigma": p.get("sigma"),
-        "identified": p.get("identified"),
-        "structural": p.get("structural"),
-    }
-
-
-def _flat(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for k, v in d.items():
-        if isinstance(v, dict):
-            out.update(_flat(v, f"{prefix}{k}."))
-        elif isinstance(v, list | tuple) and all(not isinstance(x, dict | list) for x in v):
-            for i, x in enumerate(v):
-                out[f"{prefix}{k}[{i}]"] = x
-        else:
-            out[f"{prefix}{k}"] = v
-    return out
 
 
 REPORT_409 = "the session has not ended: its report is written once it has"

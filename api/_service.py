@@ -40,7 +40,8 @@ from station.arm_route import ArmPose, ArmStatus, RoutePreview, RouteRejectedErr
 from station.batch import FileResult
 from station.config import ConfigurationError, StationConfig, load_config
 from station.imageio import ImageFileError, ImageLimits, decode_image
-from station.plans import PLAN_NAMES, PlanError
+from station.kinds import KIND_NAMES
+from station.plans import PlanError
 from station.prompts import Prompt, PromptAnswer
 from station.record import (
     ArchiveLimits,
@@ -324,7 +325,7 @@ class StationService:
                 {"id": runner.session_id, "kind": runner.kind, "state": str(runner.state)} if runner else None
             ),
             "lock": holder,
-            "plans": list(PLAN_NAMES),
+            "plans": list(KIND_NAMES),
             "worker": {"alive": self.worker.alive, "pid": self.worker.pid, "nice": info.nice},
             "robot": robot,
         }
@@ -426,8 +427,8 @@ class StationService:
     ) -> SessionView:
         """Create and start a session in the worker; it answers once pre-flight has passed
         (PreflightError: nothing moved). ConflictError while another one runs."""
-        if kind not in PLAN_NAMES:
-            raise PlanError(f"unknown session kind {kind!r}; known: {', '.join(PLAN_NAMES)}")
+        if kind not in KIND_NAMES:
+            raise PlanError(f"unknown session kind {kind!r}; known: {', '.join(KIND_NAMES)}")
         return self._start("create", kind, dict(params), measurement_names(assignments or {}))
 
     def _start(self, method: str, *args: Any) -> SessionView:

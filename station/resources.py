@@ -8,16 +8,23 @@ by the service's API (``api/``) alike.
 * :class:`SessionOutcome`: ``station run --json``'s object, ``{"id", "kind", "state", "results",
   "error"}``, which is also ``GET /api/v1/sessions/{id}/results``.
 
+``TypedSessionResource`` and ``TypedSessionOutcome`` are the same objects as the API's OpenAPI document
+publishes them: a union discriminated on ``kind`` whose ``results`` is that kind's typed results model
+(``station.kinds``). They document; they are never used to render (the results are the analysis's own
+object, shown as recorded).
+
 The keys are a contract (scripts read them): change them only with the CLI's and the API's docs.
 """
 
 from __future__ import annotations
 
 import json
-from typing import Any
+from typing import Annotated, Any, Literal, TypeVar, Union
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, create_model
 
+from station.kinds import KINDS
+from station.plans._kind import Kind
 from station.record import SessionRow
 from station.runner import Progress, RunnerState
 
@@ -105,6 +112,42 @@ class SessionOutcome(BaseModel):
         return self.model_dump()
 
 
+class NoResults(BaseModel):
+    """``{}``: the session has no results (yet)."""
+
+    model_config = ConfigDict(extra="forbid", title="NoResults")
+
+
+M = TypeVar("M", bound=BaseModel)
+
+
+def _variant(base: type[M], kind: Kind, suffix: str) -> type[M]:
+    title = "".join(part.capitalize() for part in kind.name.split("_")) + suffix
+    literal: Any = Literal[kind.name]  # a kind's name, known at run time
+    results: Any = kind.results | NoResults
+    return create_model(
+        title,
+        __base__=base,
+        __module__=__name__,
+        kind=(literal, Field(description="the session's kind")),
+        results=(
+            results,
+            Field(description=f"the {kind.name} analysis's results ({{}} before there are any)"),
+        ),
+    )
+
+
+def by_kind(base: type[M], suffix: str) -> Any:
+    """``base`` as one model per registered kind (``kind`` a literal, ``results`` that kind's results
+    model), discriminated on ``kind``: what the OpenAPI document shows."""
+    variants = tuple(_variant(base, k, suffix) for k in KINDS.values())
+    return Annotated[Union[variants], Field(discriminator="kind")]  # noqa: UP007 - built at run time
+
+
+TypedSessionResource = by_kind(SessionResource, "Session")
+TypedSessionOutcome = by_kind(SessionOutcome, "Outcome")
+
+
 def dumps(model: BaseModel | list[Any]) -> str:
     """The CLI's rendering of a model (or a list of them): one line of JSON, as ``json.dumps`` writes it
     (the state enum is a string; a NaN in a result prints as ``NaN``, as it always has)."""
@@ -113,4 +156,14 @@ def dumps(model: BaseModel | list[Any]) -> str:
     return json.dumps(model.model_dump())
 
 
-__all__ = ["ProgressModel", "SessionOutcome", "SessionResource", "SessionSummary", "dumps"]
+__all__ = [
+    "NoResults",
+    "ProgressModel",
+    "SessionOutcome",
+    "SessionResource",
+    "SessionSummary",
+    "TypedSessionOutcome",
+    "TypedSessionResource",
+    "by_kind",
+    "dumps",
+]

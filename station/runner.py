@@ -67,6 +67,7 @@ from station.devices import (
     OutOfRangeError,
     SensorAlarmError,
 )
+from station.kinds import get_plan
 from station.plans import (
     Align,
     AlignInput,
@@ -83,6 +84,7 @@ from station.plans import (
     SetSpeed,
     Settle,
     Step,
+    station_cell,
 )
 from station.plans._gates import verdict
 from station.prompts import PromptError, PromptEvent
@@ -575,7 +577,8 @@ class SessionRunner:
             record=self.record,
             session_id=sid,
             jobs=self.jobs,
-            calibration=calibration_cell(devices, self.measure_params),
+            cell=station_cell(self.plan, _config_of(devices), self.measure_params),
+            plan_of=get_plan,
             compute=self.compute,
             cancelled=lambda: self._abort,
         )
@@ -1183,6 +1186,12 @@ def stored_captures(record: Record, source: str, *, measured_in: str | None = No
     return out
 
 
+def _config_of(devices: StationDevices | None) -> dict[str, Any] | None:
+    """The live station's configuration as JSON (what a plan's ``cell_from_config`` reads); ``None``
+    without devices (an offline session)."""
+    return devices.config.model_dump(mode="json") if devices is not None else None
+
+
 def step_moves(step: Step) -> bool:
     return any(isinstance(a, MoveJoints | MoveTable | MoveOffset | Align) for a in step.actions)
 
@@ -1195,13 +1204,3 @@ def camera_height_function(devices: StationDevices | None) -> Callable[[Sequence
     from station.plans._recorded import camera_height_function as from_safety
 
     return from_safety(devices.config.robot.safety)
-
-
-def calibration_cell(devices: StationDevices | None, measure_params: MeasureParams) -> Any:
-    """The calibration plan's view of the cell (``CalibrationCell``) from the station's configuration;
-    ``None`` when it lacks ``[calibration]``, the robot or the distance sensor."""
-    if devices is None or devices.distance_sensor is None:
-        return None
-    from station.plans.calibration import calibration_cell_from_config
-
-    return calibration_cell_from_config(devices.config.model_dump(mode="json"), measure_params)

@@ -29,7 +29,8 @@ from station.config import (
     open_sim_station,
 )
 from station.config import open_station as build_station
-from station.plans import PlanError, get_plan, parse_params
+from station.kinds import get_plan
+from station.plans import PlanError, parse_params
 from station.record import EventRow, Record, SessionRow
 from station.resources import SessionOutcome
 from station.runner import SessionError, SessionRunner

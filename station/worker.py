@@ -46,7 +46,8 @@ from pathlib import Path
 from typing import Any
 
 from station.compute import ComputeSpec, open_backend
-from station.plans import get_plan, parse_params
+from station.kinds import get_plan
+from station.plans import parse_params
 from station.prompts import Prompt, PromptAnswer, PromptBroker, PromptEvent
 from station.record import (
     EventRow,

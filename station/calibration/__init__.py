@@ -31,7 +31,13 @@ from station.calibration._observations import (
     ObservationArrays,
     observation_arrays,
 )
-from station.calibration._result import SCHEMA_VERSION, CalibrationResult, ParameterEstimate, ResidualSummary
+from station.calibration._result import (
+    SCHEMA_VERSION,
+    CalibrationResult,
+    FitSummary,
+    ParameterEstimate,
+    ResidualSummary,
+)
 from station.calibration._truth import equivalent_errors, true_values
 
 __all__ = [
@@ -45,6 +51,7 @@ __all__ = [
     "CalibrationSetup",
     "CameraModel",
     "Deficiency",
+    "FitSummary",
     "IdentifiabilityReport",
     "Observation",
     "ObservationArrays",

@@ -30,18 +30,12 @@ from matplotlib.patches import Circle, Patch, Wedge
 from matplotlib.ticker import MaxNLocator
 from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
 
+from station.calibration import ResidualSummary as CalibrationResiduals
+from station.kinds.calibration.results import CalibrationParameter, CalibrationResults
+from station.kinds.repeatability.results import RepeatabilityResults, RepeatabilityTest
+from station.kinds.sweep.results import SweepResults
+from station.kinds.validation.results import ValidationResults
 from station.report import is_seed_table_1
-from station.reporting._model import (
-    CalibrationParameter,
-    CalibrationResults,
-    RepeatabilityResults,
-    RepeatabilityTest,
-    SweepResults,
-    ValidationResults,
-)
-from station.reporting._model import (
-    ResidualSummary as CalibrationResiduals,
-)
 from station.reporting._tables import motion, parameter_group, sweep_errors_um, sweep_fit
 from station.sweep import SEED_TABLE_1
 

@@ -15,24 +15,14 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from station.calibration import ResidualSummary as CalibrationResiduals
+from station.kinds.calibration.results import CalibrationParameter, CalibrationResults, Deficiency
+from station.kinds.repeatability.results import FailedTest, RepeatabilityResults, RepeatabilityTest
+from station.kinds.sweep.results import SweepResults
+from station.kinds.validation.results import ValidationResults
+from station.plans._results import Check
 from station.report import SweepRow, is_seed_table_1, seed_table_1, sweep_note, sweep_table, table
-from station.reporting._model import (
-    CalibrationParameter,
-    CalibrationResults,
-    Check,
-    Deficiency,
-    FailedTest,
-    RepeatabilityResults,
-    RepeatabilityTest,
-    Session,
-    SweepResults,
-    ValidationResults,
-    format_date,
-    format_value,
-)
-from station.reporting._model import (
-    ResidualSummary as CalibrationResiduals,
-)
+from station.reporting._model import Session, format_date, format_value
 
 
 @dataclass(frozen=True)

@@ -113,7 +113,7 @@ def resources(runs: tuple[Path, dict[str, dict[str, Any]]]) -> Iterator[dict[str
     served = serve(StationService(ServiceSettings(sim=True, data=data)), Access(TOKEN, False))
     try:
         with httpx.Client(base_url=served.base, headers=AUTH, timeout=30.0) as client:
-            out = {}
+            out = {"openapi": client.get("/api/v1/openapi.json").json()}
             for kind, doc in docs.items():
                 r = client.get(f"/api/v1/sessions/{doc['id']}")
                 assert r.status_code == 200, r.text
@@ -131,3 +131,36 @@ def test_the_apis_session_resource_is_unchanged(
     assert doc["id"] == runs[1][kind]["id"]
     assert doc["results"] == runs[1][kind]["results"]  # the CLI's and the API's results are one object
     check(f"resource-{kind}", doc)
+
+
+def test_the_typed_models_describe_every_kinds_objects(
+    runs: tuple[Path, dict[str, dict[str, Any]]], resources: dict[str, dict[str, Any]]
+) -> None:
+    """Issue 21, item 1: each kind's results are typed; the typed union (what the OpenAPI document
+    publishes) accepts exactly what is served, each object as its own kind's variant."""
+    from pydantic import TypeAdapter
+
+    from station.resources import TypedSessionOutcome, TypedSessionResource
+
+    for kind in RUNS:
+        resource = TypeAdapter(TypedSessionResource).validate_python(resources[kind])
+        outcome = TypeAdapter(TypedSessionOutcome).validate_python(runs[1][kind])
+        assert type(resource).__name__ == f"{kind.capitalize()}Session"
+        assert type(outcome).__name__ == f"{kind.capitalize()}Outcome"
+        assert type(resource.results).__name__ == f"{kind.capitalize()}Results"
+
+
+def test_the_openapi_document_shows_each_kinds_results(resources: dict[str, dict[str, Any]]) -> None:
+    doc = resources["openapi"]
+    schemas = doc["components"]["schemas"]
+    body = doc["paths"]["/api/v1/sessions/{session_id}"]["get"]["responses"]["200"]["content"]
+    schema = body["application/json"]["schema"]
+    assert schema["discriminator"]["propertyName"] == "kind"
+    assert set(schema["discriminator"]["mapping"]) == set(RUNS)
+    for kind in RUNS:
+        variant = schemas[f"{kind.capitalize()}Session"]
+        assert variant["properties"]["kind"]["const"] == kind
+        refs = {r.get("$ref") for r in variant["properties"]["results"]["anyOf"]}
+        assert f"#/components/schemas/{kind.capitalize()}Results" in refs
+    assert "rp_mm" in schemas["RepeatabilityResults"]["properties"]
+    assert "relative_error_um" in schemas["CalibrationResults"]["properties"]

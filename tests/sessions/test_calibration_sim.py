@@ -23,8 +23,8 @@ import pytest
 
 from sim.calibration_truth import truth_report
 from station.calibration import CalibrationResult
+from station.kinds.calibration.params import calibration_cell_from_config
 from station.kinematics import Kinematics
-from station.plans.calibration import calibration_cell_from_config
 from station.runner import stored_captures
 from station.session import SessionOutcome, open_record, run_session
 from station.vision import MeasureParams

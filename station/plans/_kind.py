@@ -1,0 +1,40 @@
+"""A session kind as the registry (``station.kinds``) holds it: its plan, its typed results model, how its
+results are shown and, optionally, how its results hold another kind's (a re-analysis)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Collection, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from station.plans import Plan
+from station.plans._results import ResultsModel
+
+#: (the inner kind, its results) of results that hold another kind's (``reanalyse``)
+InnerResults = Callable[[Mapping[str, Any], Collection[str]], tuple[str, Any]]
+#: a few lines for the terminal (``station run``, ``station calibrate``)
+Summary = Callable[[Mapping[str, Any]], str]
+#: the rows of the results' CSV table (``GET /api/v1/sessions/{id}/results?format=csv``)
+Rows = Callable[[Mapping[str, Any]], list[dict[str, Any]]]
+
+
+@dataclass(frozen=True)
+class Kind:
+    """One session kind.
+
+    ``plan``: its parameter model, steps, resume rule and analysis with its gates. ``results``: the typed
+    model of what its analysis returns (published in the API's OpenAPI document, parsed by the report).
+    ``summary`` and ``rows``: the terminal's lines and the CSV table's rows of its results (none: the
+    results shown as JSON, no table). ``inner``: for a kind whose results hold another kind's (a
+    re-analysis), where they are; they are shown and drawn as that kind's.
+    """
+
+    plan: Plan
+    results: type[ResultsModel]
+    summary: Summary | None = None
+    rows: Rows | None = None
+    inner: InnerResults | None = None
+
+    @property
+    def name(self) -> str:
+        return self.plan.name
