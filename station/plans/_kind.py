@@ -3,7 +3,7 @@ results are shown and, optionally, how its results hold another kind's (a re-ana
 
 from __future__ import annotations
 
-from collections.abc import Callable, Collection, Mapping
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -16,6 +16,10 @@ InnerResults = Callable[[Mapping[str, Any], Collection[str]], tuple[str, Any]]
 Summary = Callable[[Mapping[str, Any]], str]
 #: the rows of the results' CSV table (``GET /api/v1/sessions/{id}/results?format=csv``)
 Rows = Callable[[Mapping[str, Any]], list[dict[str, Any]]]
+#: the report's tables of the parsed results (results, the report's session), by name
+Tables = Callable[[Any, Any], Mapping[str, Any]]
+#: the report's figures of the parsed results
+Figures = Callable[[Any], Sequence[Any]]
 
 
 @dataclass(frozen=True)
@@ -24,15 +28,19 @@ class Kind:
 
     ``plan``: its parameter model, steps, resume rule and analysis with its gates. ``results``: the typed
     model of what its analysis returns (published in the API's OpenAPI document, parsed by the report).
-    ``summary`` and ``rows``: the terminal's lines and the CSV table's rows of its results (none: the
-    results shown as JSON, no table). ``inner``: for a kind whose results hold another kind's (a
-    re-analysis), where they are; they are shown and drawn as that kind's.
+    ``title``: the report's heading. ``summary`` and ``rows``: the terminal's lines and the CSV table's
+    rows of its results (none: the results shown as JSON, no table). ``tables`` and ``figures``: the
+    report's (``station.reporting`` draws them with its machinery). ``inner``: for a kind whose results
+    hold another kind's (a re-analysis), where they are; they are shown and drawn as that kind's.
     """
 
     plan: Plan
     results: type[ResultsModel]
+    title: str = ""
     summary: Summary | None = None
     rows: Rows | None = None
+    tables: Tables | None = None
+    figures: Figures | None = None
     inner: InnerResults | None = None
 
     @property

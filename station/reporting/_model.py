@@ -1,4 +1,5 @@
-"""The session mapping a report is drawn from, parsed and checked at the boundary.
+"""The session mapping a report is drawn from, parsed and checked at the boundary (by the kinds'
+results models, ``station.kinds``).
 
 A session comes from the record (or its JSON export) as a plain mapping: ``id``, ``kind``, ``state``,
 ``created_at`` (ISO 8601), ``params``, ``identities``, ``software``, ``results`` (None until the session
@@ -13,62 +14,15 @@ relative error in um, its residuals in mm, each parameter with its own ``unit`` 
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Mapping
-from dataclasses import dataclass
-from datetime import UTC, datetime
 from typing import Any
 
 from pydantic import ValidationError as PydanticValidationError
 
 from station.kinds import KIND_NAMES, KINDS
-from station.kinds.calibration.results import CalibrationResults
-from station.kinds.repeatability.results import RepeatabilityResults
-from station.kinds.sweep.results import SweepResults
-from station.kinds.validation.results import ValidationResults
 from station.plans import PlanError
-from station.plans._results import Check
-
-
-class ReportError(ValueError):
-    """A session cannot be reported: not a session mapping, or its results are malformed."""
-
-
-Results = ValidationResults | RepeatabilityResults | SweepResults | CalibrationResults
-
-
-@dataclass(frozen=True)
-class Session:
-    """A session's facts for the report header, and its results parsed (None when there are none).
-
-    ``results_kind``: the kind the results are drawn as (a re-analysis is drawn as its source's kind);
-    ``problem``: why the results could not be parsed (only for sessions that did not succeed, whose
-    results may be partial; ``raw_results`` then keeps them for the report to show as they are).
-    """
-
-    id: str
-    kind: str
-    state: str
-    created_at: str
-    params: Mapping[str, Any]
-    identities: Mapping[str, Any]
-    software: Mapping[str, Any]
-    error: str | None
-    source_session: str | None
-    results_kind: str | None
-    results: Results | None
-    raw_results: Any
-    problem: str | None
-
-    @property
-    def succeeded(self) -> bool:
-        return self.state == "succeeded"
-
-    @property
-    def failed_checks(self) -> list[Check]:
-        """The ``fail`` checks its results did not pass (why a session with results failed)."""
-        checks: list[Check] = getattr(self.results, "checks", [])
-        return [c for c in checks if c.severity == "fail" and not c.passed]
+from station.plans._results import ResultsModel
+from station.reporting._session import ReportError, Session
 
 
 def _error_text(error: Any) -> str | None:
@@ -90,7 +44,7 @@ def _describe(exc: PydanticValidationError) -> str:
     return f"{where}: {first['msg']}{more}"
 
 
-def _parse_results(kind: str, raw: Any) -> tuple[str | None, str | None, Results | None]:
+def _parse_results(kind: str, raw: Any) -> tuple[str | None, str | None, ResultsModel | None]:
     """(kind drawn, source session, parsed results) of a session's ``results``: results that hold
     another kind's (a re-analysis) are drawn as that kind's."""
     if raw is None:
@@ -111,7 +65,6 @@ def _parse_results(kind: str, raw: Any) -> tuple[str | None, str | None, Results
         parsed = entry.results.model_validate(raw)
     except PydanticValidationError as exc:
         raise ReportError(_describe(exc)) from None
-    assert isinstance(parsed, ValidationResults | RepeatabilityResults | SweepResults | CalibrationResults)
     return kind, source_id, parsed
 
 
@@ -154,30 +107,3 @@ def parse_session(session: Mapping[str, Any]) -> Session:
 
 def _mapping(value: Any) -> Mapping[str, Any]:
     return value if isinstance(value, Mapping) else {}
-
-
-def format_date(iso: str) -> str:
-    """An ISO 8601 time as ``YYYY-MM-DD HH:MM:SS UTC`` (or with its offset); unparsable text as given."""
-    try:
-        when = datetime.fromisoformat(iso)
-    except ValueError:
-        return iso
-    if when.tzinfo is None:
-        return when.strftime("%Y-%m-%d %H:%M:%S")
-    if when.utcoffset() == UTC.utcoffset(None):
-        return when.strftime("%Y-%m-%d %H:%M:%S UTC")
-    return when.strftime("%Y-%m-%d %H:%M:%S %z")
-
-
-def format_value(value: Any) -> str:
-    """A parameter or identity value as compact text (JSON for structures, "-" for none)."""
-    if value is None:
-        return "-"
-    if isinstance(value, str):
-        return value
-    if isinstance(value, float) and not math.isfinite(value):
-        return str(value)
-    try:
-        return json.dumps(value, default=str, allow_nan=True)
-    except (TypeError, ValueError):
-        return str(value)

@@ -5,6 +5,11 @@ from station.kinds.reanalyse.plan import REANALYSE
 from station.kinds.reanalyse.results import ReanalyseResults, inner_results
 from station.plans._kind import Kind
 
-KIND = Kind(plan=REANALYSE, results=ReanalyseResults, inner=inner_results)
+KIND = Kind(
+    plan=REANALYSE,
+    results=ReanalyseResults,
+    title="Re-analysis",
+    inner=inner_results,
+)
 
 __all__ = ["KIND"]
