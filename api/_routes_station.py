@@ -20,7 +20,7 @@ from api._overlay import measurement_headers
 from station import __version__
 from station.arm_route import ArmStatus, ToReferenceResult
 from station.imageio import DEFAULT_MAX_BYTES, ImageLimits, read_header
-from station.vision import MeasureParams
+from station.vision import field_names
 
 router = APIRouter(prefix="/api/v1")
 
@@ -141,17 +141,12 @@ async def read_body(request: Request, max_bytes: int) -> bytes:
 
 def measure_query(request: Request) -> dict[str, Any]:
     """``mode`` and any ``--set`` name (case-insensitive) from the query string."""
-    names = {n.lower(): n for n in MeasureParams.model_fields}
     out: dict[str, Any] = {}
     for key, value in request.query_params.multi_items():
-        name = names.get(key.lower())
-        if name is None:
-            raise ApiError(
-                422,
-                f"unknown measurement parameter {key!r}; known: {', '.join(sorted(names))}",
-                "invalid_parameters",
-            )
-        out[name] = value
+        try:
+            out.update(field_names({key: value}, option="query parameter"))
+        except ValueError as exc:
+            raise ApiError(422, str(exc), "invalid_parameters") from None
     return out
 
 

@@ -56,8 +56,8 @@ from station.record import (
 )
 from station.resources import SessionOutcome
 from station.runner import ACTIVE_STATES, FINAL_STATES, Progress, RunnerState, reconcile
-from station.session import open_record, session_measure_params
-from station.vision import MeasurementError, MeasureParams, measure
+from station.session import open_record, station_measure_params
+from station.vision import MeasurementError, MeasureParams, field_names, measure
 from station.worker import (
     NO_REFERENCE,
     WORKER_NICE,
@@ -366,7 +366,7 @@ class StationService:
         return Picture(overlay_png(image, result), result)
 
     def _measure_array(self, image: Any) -> dict[str, Any]:
-        mp, _ = session_measure_params(self.record, "repeatability", {}, self.config, {})
+        mp, _ = station_measure_params(self.record, self.config)
         try:
             return measure(image, mp).to_json()
         except MeasurementError as exc:
@@ -611,14 +611,10 @@ class StationService:
 
 def measurement_names(values: Mapping[str, Any]) -> dict[str, Any]:
     """``--set`` names, case-insensitive (``TESTWIDTH`` is ``testwidth``); PlanError for an unknown one."""
-    names = {n.lower(): n for n in MeasureParams.model_fields}
-    out: dict[str, Any] = {}
-    for key, value in values.items():
-        name = names.get(key.lower())
-        if name is None:
-            raise PlanError(f"unknown measurement parameter {key!r}; known: {', '.join(sorted(names))}")
-        out[name] = value
-    return out
+    try:
+        return field_names(values, option="set")
+    except ValueError as exc:
+        raise PlanError(str(exc)) from None
 
 
 ImportArchiveError = ArchiveRefusedError

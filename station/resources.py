@@ -4,7 +4,8 @@ by the service's API (``api/``) alike.
 * :class:`SessionSummary`: a session as ``station sessions --json`` lists it (the record's row without
   its configuration, identities and software);
 * :class:`SessionResource`: the API's session resource, the summary plus the live ``progress``
-  (``{"done", "total", "eta_s"}``) and ``results`` always an object (``{}`` before there are any);
+  (``station.runner.Progress``: ``{"done", "total", "eta_s"}``) and ``results`` always an object
+  (``{}`` before there are any);
 * :class:`SessionOutcome`: ``station run --json``'s object, ``{"id", "kind", "state", "results",
   "error"}``, which is also ``GET /api/v1/sessions/{id}/results``.
 
@@ -27,20 +28,6 @@ from station.kinds import KINDS
 from station.plans._kind import Kind
 from station.record import SessionRow
 from station.runner import Progress, RunnerState
-
-
-class ProgressModel(BaseModel):
-    """A session's progress: steps done of the plan's total, and the estimated time left (s)."""
-
-    model_config = ConfigDict(frozen=True)
-
-    done: int = Field(ge=0)
-    total: int = Field(ge=0)
-    eta_s: float | None = None
-
-    @classmethod
-    def of(cls, progress: Progress) -> ProgressModel:
-        return cls.model_construct(done=progress.done, total=progress.total, eta_s=progress.eta_s)
 
 
 class SessionSummary(BaseModel):
@@ -83,13 +70,13 @@ class SessionResource(SessionSummary):
     """The API's session resource: the summary, its results always an object, and the live progress."""
 
     results: dict[str, Any]
-    progress: ProgressModel
+    progress: Progress
 
     @classmethod
     def of_row(cls, row: SessionRow, progress: Progress) -> SessionResource:
         fields = cls.fields_of(row)
         fields["results"] = fields["results"] or {}
-        return cls.model_construct(**fields, progress=ProgressModel.of(progress))
+        return cls.model_construct(**fields, progress=progress)
 
 
 class SessionOutcome(BaseModel):
@@ -158,7 +145,6 @@ def dumps(model: BaseModel | list[Any]) -> str:
 
 __all__ = [
     "NoResults",
-    "ProgressModel",
     "SessionOutcome",
     "SessionResource",
     "SessionSummary",

@@ -44,11 +44,10 @@ import time
 from collections import deque
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel
+from pydantic import BaseModel, ConfigDict, Field
 
 from station import __version__, scale_calibration
 from station.arm_route import TO_REFERENCE_HINT, describe_offset, go_to_reference, max_step_of, plan_route
@@ -159,14 +158,18 @@ class _StopRequestedError(Exception):
     """Raised at a safe point when a stop was requested."""
 
 
-@dataclass(frozen=True)
-class Progress:
-    done: int
-    total: int
-    eta_s: float | None
+class Progress(BaseModel):
+    """A session's progress: steps done of the plan's total, and the estimated time left (s); the API's
+    ``progress`` and the ``step_finished`` event's."""
+
+    model_config = ConfigDict(frozen=True)
+
+    done: int = Field(ge=0)
+    total: int = Field(ge=0)
+    eta_s: float | None = None
 
     def to_json(self) -> dict[str, Any]:
-        return {"done": self.done, "total": self.total, "eta_s": self.eta_s}
+        return self.model_dump()
 
 
 def software_info() -> dict[str, str]:
@@ -290,7 +293,7 @@ class SessionRunner:
             if self._t_steps and total:
                 per = sum(self._t_steps) / len(self._t_steps)
                 eta = round(per * (total - done), 1)
-            return Progress(done, total, eta)
+            return Progress.model_construct(done=done, total=total, eta_s=eta)
 
     def subscribe(self, listener: Callable[[EventRow], None]) -> Callable[[], None]:
         """Call ``listener(event)`` for every event of this session (from the runner's thread)."""

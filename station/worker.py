@@ -438,7 +438,7 @@ class SessionHost:
             sid,
             runner.plan.name,
             RunnerState.FAILED,
-            Progress(done.done, done.total, None),
+            Progress.model_construct(done=done.done, total=done.total, eta_s=None),
             error=str(exc) or type(exc).__name__,
         )
         with contextlib.suppress(OSError, ValueError):

@@ -4,7 +4,7 @@ results are shown and, optionally, how its results hold another kind's (a re-ana
 from __future__ import annotations
 
 from collections.abc import Callable, Collection, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from station.plans import Plan
@@ -28,15 +28,22 @@ class Kind:
 
     ``plan``: its parameter model, steps, resume rule and analysis with its gates. ``results``: the typed
     model of what its analysis returns (published in the API's OpenAPI document, parsed by the report).
-    ``title``: the report's heading. ``summary`` and ``rows``: the terminal's lines and the CSV table's
-    rows of its results (none: the results shown as JSON, no table). ``tables`` and ``figures``: the
-    report's (``station.reporting`` draws them with its machinery). ``inner``: for a kind whose results
-    hold another kind's (a re-analysis), where they are; they are shown and drawn as that kind's.
+    ``title``: the report's heading. ``measure_defaults``: its measurement parameters' defaults (under
+    the configuration's and ``--set``). ``scale_calibrated``: the station's scale calibration gives its
+    groove width (unless ``--set`` does). ``remeasures_source``: it measures a stored session again,
+    with that session's measurement parameters and scale calibration (unless ``--set`` changes them).
+    ``summary`` and ``rows``: the terminal's lines and the CSV table's rows of its results (none: the
+    results shown as JSON, no table). ``tables`` and ``figures``: the report's (``station.reporting``
+    draws them with its machinery). ``inner``: for a kind whose results hold another kind's (a
+    re-analysis), where they are; they are shown and drawn as that kind's.
     """
 
     plan: Plan
     results: type[ResultsModel]
     title: str = ""
+    measure_defaults: Mapping[str, Any] = field(default_factory=dict)
+    scale_calibrated: bool = False
+    remeasures_source: bool = False
     summary: Summary | None = None
     rows: Rows | None = None
     tables: Tables | None = None

@@ -8,6 +8,7 @@ from station.plans._kind import Kind
 KIND = Kind(
     plan=REANALYSE,
     results=ReanalyseResults,
+    remeasures_source=True,
     title="Re-analysis",
     inner=inner_results,
 )

@@ -10,6 +10,7 @@ from station.plans._kind import Kind
 KIND = Kind(
     plan=REPEATABILITY,
     results=RepeatabilityResults,
+    scale_calibrated=True,
     title="Pose repeatability",
     summary=present.summary,
     rows=present.rows,

@@ -10,6 +10,7 @@ from station.plans._kind import Kind
 KIND = Kind(
     plan=SWEEP,
     results=SweepResults,
+    measure_defaults={"mode": "paper"},
     title="Parameter study",
     summary=present.summary,
     rows=present.rows,

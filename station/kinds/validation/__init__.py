@@ -10,6 +10,7 @@ from station.plans._kind import Kind
 KIND = Kind(
     plan=VALIDATION,
     results=ValidationResults,
+    scale_calibrated=True,
     title="Validation against the X-Y table",
     summary=present.summary,
     rows=present.rows,
