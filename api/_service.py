@@ -64,7 +64,7 @@ from station.worker import (
     ConflictError,
     NotAvailableError,
     RunnerStatus,
-    StationWorker,
+    WorkerClient,
     WorkerError,
     WorkerSpec,
 )
@@ -126,7 +126,7 @@ class StationService:
         self._recent: deque[EventRow] = deque(maxlen=EVENT_BUFFER)
         self.interrupted_at_start = self._reconcile()
         try:
-            self.worker = StationWorker(
+            self.worker = WorkerClient(
                 WorkerSpec(
                     sim=settings.sim,
                     manual_prompts=settings.manual_prompts,
