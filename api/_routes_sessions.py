@@ -13,7 +13,7 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import FileResponse, Response
 
 from api._auth import read_access, require_token
-from api._deps import SessionId, service_of
+from api._deps import Files, Measures, SessionId, service_of
 from api._errors import ApiError
 from api._models import (
     ActionRequest,
@@ -128,14 +128,13 @@ async def list_sessions(
         ),
     },
 )
-async def import_session(request: Request) -> Response:
+async def import_session(request: Request, files: Files) -> Response:
     """Import a session from a zip written by ``/export.zip`` (or a zipped ``station export`` folder);
     the body is the zip (``Content-Type: application/zip``)."""
     require_type(request, ZIP_TYPES)
     data = await read_body(request, MAX_IMPORT_BYTES)
-    service = service_of(request)
-    row = await run_in_threadpool(service.import_zip, data, max_bytes=MAX_IMPORT_BYTES * 4)
-    return rendered(session_model(await run_in_threadpool(service.get_session, row.id)), 201)
+    row = await run_in_threadpool(files.import_zip, data, max_bytes=MAX_IMPORT_BYTES * 4)
+    return rendered(session_model(await run_in_threadpool(service_of(request).get_session, row.id)), 201)
 
 
 @router.get(
@@ -174,10 +173,10 @@ async def act(request: Request, session_id: SessionId, body: ActionRequest) -> R
         **problems(*ONE, s409="the session has no table of results (format=csv)"),
     },
 )
-async def results(request: Request, session_id: SessionId, format: Literal["json", "csv"] = "json") -> Any:
+async def results(session_id: SessionId, files: Files, format: Literal["json", "csv"] = "json") -> Any:
     """``station run --json``'s object; ``?format=csv``: the per-position (validation) or per-cycle
     (repeatability) table."""
-    outcome = await run_in_threadpool(service_of(request).results, session_id)
+    outcome = await run_in_threadpool(files.results, session_id)
     if format == "json":
         return rendered(outcome)
     rows = table_rows(outcome.kind, outcome.results)
@@ -216,11 +215,11 @@ REPORT_409 = "the session has not ended: its report is written once it has"
         **problems(*ONE, s409=REPORT_409),
     },
 )
-async def figure(request: Request, session_id: SessionId, name: str) -> FileResponse:
+async def figure(session_id: SessionId, name: str, files: Files) -> FileResponse:
     """A figure of the session's report (``.png`` or ``.svg``), written on first request."""
     if not _FIGURE_NAME.fullmatch(name) or not name.endswith((".png", ".svg")):
         raise ApiError(404, f"no figure {name!r}: names end in .png or .svg", "not_found")
-    folder = await run_in_threadpool(service_of(request).report_dir, session_id)
+    folder = await run_in_threadpool(files.report_dir, session_id)
     path = folder / name
     if not path.is_file():
         names = sorted(p.name for p in folder.iterdir() if p.suffix in (".png", ".svg"))
@@ -233,8 +232,8 @@ async def figure(request: Request, session_id: SessionId, name: str) -> FileResp
 @router.get(
     "/{session_id}/figures", dependencies=[Depends(read_access)], responses=problems(*ONE, s409=REPORT_409)
 )
-async def figures(request: Request, session_id: SessionId) -> dict[str, list[str]]:
-    folder = await run_in_threadpool(service_of(request).report_dir, session_id)
+async def figures(session_id: SessionId, files: Files) -> dict[str, list[str]]:
+    folder = await run_in_threadpool(files.report_dir, session_id)
     return {"figures": sorted(p.name for p in folder.iterdir() if p.suffix in (".png", ".svg"))}
 
 
@@ -250,10 +249,10 @@ _HEAD = re.compile(r"<head>", re.IGNORECASE)
         **problems(*ONE, s409=REPORT_409),
     },
 )
-async def report(request: Request, session_id: SessionId) -> Response:
+async def report(request: Request, session_id: SessionId, files: Files) -> Response:
     """The report's HTML page. Its links to the figure files are relative (``name.png``: they work in the
     report's folder on disk); served here, a ``<base>`` points them at the figure route."""
-    folder = await run_in_threadpool(service_of(request).report_dir, session_id)
+    folder = await run_in_threadpool(files.report_dir, session_id)
     pages = sorted(folder.glob("*.html"))
     if not pages:
         raise ApiError(409, "the report has no HTML page", "no_report")
@@ -279,8 +278,8 @@ async def report(request: Request, session_id: SessionId) -> Response:
         **problems(*ONE),
     },
 )
-async def export(request: Request, session_id: SessionId) -> Response:
-    sid, data = await run_in_threadpool(service_of(request).export_zip, session_id)
+async def export(session_id: SessionId, files: Files) -> Response:
+    sid, data = await run_in_threadpool(files.export_zip, session_id)
     return Response(
         data,
         media_type="application/zip",
@@ -297,8 +296,8 @@ async def export(request: Request, session_id: SessionId) -> Response:
         **problems(*ONE, s409="the session has no capture yet"),
     },
 )
-async def latest(request: Request, session_id: SessionId, overlay: bool = True) -> Response:
+async def latest(session_id: SessionId, measurements: Measures, overlay: bool = True) -> Response:
     """The session's latest capture with its measurement drawn (the live view while it runs)."""
-    picture = await run_in_threadpool(service_of(request).latest_capture_png, session_id, overlay=overlay)
+    picture = await run_in_threadpool(measurements.latest_capture_png, session_id, overlay=overlay)
     headers = {"Cache-Control": "no-store", **measurement_headers(picture.measurement)}
     return Response(picture.png, media_type="image/png", headers=headers)

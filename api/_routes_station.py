@@ -11,7 +11,7 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import Response
 
 from api._auth import Access, read_access, require_token
-from api._deps import service_of
+from api._deps import Measures, service_of
 from api._errors import ApiError
 from api._gate import DecodeGate
 from api._models import AccessModel, Health, StationModel, rendered
@@ -59,14 +59,14 @@ async def station(request: Request) -> Response:
         **problems(401, 403, 422, 503, s409="a session owns the camera, or the station has none"),
     },
 )
-async def snapshot(request: Request, overlay: bool = False) -> Response:
+async def snapshot(measurements: Measures, overlay: bool = False) -> Response:
     """A frame from the camera (optionally with the measurement drawn on it); 409 while a session owns
     the camera: its latest capture is at ``/api/v1/sessions/{id}/latest.png`` then. A frame the
     measurement refuses (no crossing in view) is still a 200 frame: with ``overlay`` the refusal is
     written under it and sent beside it (``X-Measurement-Ok: false``, ``X-Measurement-Code``,
     ``X-Measurement-Error``); ``X-Measurement`` carries its numbers as JSON (``ok``, ``center_px``,
     ``center_mm``, ``code``, ``error``)."""
-    picture = await run_in_threadpool(service_of(request).snapshot_png, overlay=overlay)
+    picture = await run_in_threadpool(measurements.snapshot_png, overlay=overlay)
     headers = {"Cache-Control": "no-store", **measurement_headers(picture.measurement)}
     return Response(picture.png, media_type="image/png", headers=headers)
 
@@ -176,7 +176,7 @@ def measure_query(request: Request) -> dict[str, Any]:
         s503="every measuring slot is taken and the queue is full (busy): try again after Retry-After",
     ),
 )
-async def measure(request: Request) -> dict[str, Any]:
+async def measure(request: Request, measurements: Measures) -> dict[str, Any]:
     """The same object as ``station measure --json`` (``ok`` true or false): the image is the raw body.
     At most one image per core is decoded at a time (the largest take every core's turn), a few more
     wait, and the rest get 503 (busy): ``api/_gate.py``."""
@@ -190,7 +190,7 @@ async def measure(request: Request) -> dict[str, Any]:
     async with gate.place():  # before the body is read: the rest get 503 without sending it
         data = await read_body(request, MAX_UPLOAD_BYTES)
         async with gate.slots_for(gate.weight(_decoded_bytes(data), limits.max_decoded_bytes)):
-            return await run_in_threadpool(service_of(request).measure_image, data, params, limits=limits)
+            return await run_in_threadpool(measurements.measure_image, data, params, limits=limits)
 
 
 def _decoded_bytes(data: bytes) -> int | None:

@@ -99,6 +99,12 @@ class SessionOutcome(BaseModel):
         return self.model_dump()
 
 
+def report_document(row: SessionRow) -> dict[str, Any]:
+    """What ``station.reporting.write_report`` takes: the session object (``station sessions --json``'s)
+    with its identities and software."""
+    return {**SessionSummary.of(row).model_dump(), "identities": row.identities, "software": row.software}
+
+
 class NoResults(BaseModel):
     """``{}``: the session has no results (yet)."""
 
@@ -152,4 +158,5 @@ __all__ = [
     "TypedSessionResource",
     "by_kind",
     "dumps",
+    "report_document",
 ]

@@ -158,8 +158,8 @@ def test_the_sessions_report_shows_each_observations_residual(
     session: tuple[Path, SessionOutcome], tmp_path: Path
 ) -> None:
     """The session's results list every capture's residual; its report draws them as histograms."""
-    from station.commands.sessions import report_document
     from station.reporting import write_report
+    from station.resources import report_document
 
     data, outcome = session
     with open_record(data) as record:
