@@ -10,7 +10,8 @@ from api._app import create_app
 from api._auth import Access, TokenError, is_loopback, resolve_token
 from api._edge import AllowedHosts
 from api._server import ListenError, ServeLimits, listen, server_config
-from api._service import ServiceSettings, StationService
+from api._service import StationService
+from api._settings import ServiceSettings
 
 __all__ = [
     "Access",

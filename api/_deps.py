@@ -9,7 +9,10 @@ from typing import Annotated
 from fastapi import Depends, Path, Request
 
 from api._errors import ApiError
+from api._measurements import Measurements
+from api._scale_calibrations import ScaleCalibrations
 from api._service import StationService
+from api._session_files import SessionFiles
 
 SESSION_ID = r"^[0-9A-Fa-f]{4,12}$"
 """A session id (12 hexadecimal digits) or a unique prefix of at least 4 of them."""
@@ -19,6 +22,26 @@ PROMPT_ID = r"^[0-9A-Za-z_-]{1,64}$"
 def service_of(request: Request) -> StationService:
     service: StationService = request.app.state.service
     return service
+
+
+def _session_files(request: Request) -> SessionFiles:
+    return service_of(request).files
+
+
+def _measurements(request: Request) -> Measurements:
+    return service_of(request).measurements
+
+
+def _scale_calibrations(request: Request) -> ScaleCalibrations:
+    return service_of(request).scale_calibrations
+
+
+Files = Annotated[SessionFiles, Depends(_session_files)]
+"""The record's session files (outcome, report, export, import): ``api._session_files``."""
+Measures = Annotated[Measurements, Depends(_measurements)]
+"""Uploads, camera frames and stored captures measured: ``api._measurements``."""
+ScaleCalibrationsDep = Annotated[ScaleCalibrations, Depends(_scale_calibrations)]
+"""The station's scale calibration, its history and the revert: ``api._scale_calibrations``."""
 
 
 async def _session_id(

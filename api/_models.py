@@ -1,9 +1,11 @@
 """The API's bodies: pydantic models, the same objects the CLI prints with ``--json``.
 
 The session objects are ``station.resources``' models, which the CLI renders too (one model, two
-renderings): ``SessionModel`` is :class:`~station.resources.SessionResource` (``station sessions
---json``'s object plus the live progress), ``OutcomeModel`` :class:`~station.resources.SessionOutcome`
-(``station run --json``'s object). The rest are the API's own (requests, prompts, events, problems).
+renderings): :class:`~station.resources.SessionResource` (``station sessions --json``'s object plus the
+live progress) and :class:`~station.resources.SessionOutcome` (``station run --json``'s object). The
+routes document them as ``SessionModel`` and ``OutcomeModel``: the same objects typed per kind (a union
+discriminated on ``kind``, ``results`` that kind's results model), so that the OpenAPI document shows
+each kind's results. The rest are the API's own (requests, prompts, events, problems).
 """
 
 from __future__ import annotations
@@ -14,10 +16,10 @@ from fastapi.responses import Response
 from pydantic import BaseModel, ConfigDict, Field
 
 from api._service import SessionView
-from station.plans import PLAN_NAMES
+from station.kinds import KIND_NAMES
 from station.prompts import Prompt, PromptAnswer
 from station.record import EventRow
-from station.resources import SessionOutcome, SessionResource
+from station.resources import SessionResource, TypedSessionOutcome, TypedSessionResource
 
 
 class Problem(BaseModel):
@@ -65,8 +67,8 @@ class PlanList(BaseModel):
     plans: list[PlanModel]
 
 
-SessionModel = SessionResource
-OutcomeModel = SessionOutcome
+SessionModel = TypedSessionResource
+OutcomeModel = TypedSessionOutcome
 
 
 def session_model(view: SessionView) -> SessionResource:
@@ -82,7 +84,16 @@ def rendered(model: BaseModel, status_code: int = 200) -> Response:
 
 
 class SessionList(BaseModel):
-    items: list[SessionModel]
+    """A page of sessions (documented: each typed by its kind)."""
+
+    items: list[SessionModel]  # type: ignore[valid-type]
+    total: int
+
+
+class SessionPage(BaseModel):
+    """What renders :class:`SessionList` (the resources as recorded)."""
+
+    items: list[SessionResource]
     total: int
 
 
@@ -92,7 +103,7 @@ class SessionCreate(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    kind: str = Field(description="the session's plan", json_schema_extra={"enum": list(PLAN_NAMES)})
+    kind: str = Field(description="the session's plan", json_schema_extra={"enum": list(KIND_NAMES)})
     params: dict[str, Any] = Field(default_factory=dict, description="the plan's parameters")
     set: dict[str, Any] = Field(default_factory=dict, description="measurement parameters, as --set")
 

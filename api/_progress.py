@@ -58,7 +58,9 @@ class RecordedProgress:
                 return cached
         done = sum(1 for s in self.record.steps(row.id) if s.state == "done" and s.index < PRELUDE_BASE)
         total = planned_steps(self.record.events(row.id, limit=EARLY_EVENTS))
-        progress = Progress(done, max(total, done) if total is not None else done, None)
+        progress = Progress.model_construct(
+            done=done, total=max(total, done) if total is not None else done, eta_s=None
+        )
         if ended:
             with self._lock:
                 self._cache[key] = progress

@@ -11,7 +11,7 @@ from pydantic_core import to_jsonable_python
 from api._auth import read_access
 from api._models import PlanList, PlanModel
 from api._openapi import problems
-from station.plans import PLAN_NAMES, get_plan
+from station.kinds import KIND_NAMES, get_plan
 
 router = APIRouter(prefix="/api/v1")
 
@@ -35,7 +35,7 @@ def plan_list() -> PlanList:
     return PlanList(
         plans=[
             PlanModel(name=n, needs=sorted(get_plan(n).needs), params_schema=plan_schema(n))
-            for n in PLAN_NAMES
+            for n in KIND_NAMES
         ]
     )
 

@@ -10,32 +10,29 @@ from __future__ import annotations
 
 from typing import Any
 
-from fastapi import APIRouter, Depends, Request
+from fastapi import APIRouter, Depends
 from fastapi.concurrency import run_in_threadpool
 
 from api._auth import read_access, require_token
-from api._deps import service_of
+from api._deps import ScaleCalibrationsDep
 from api._openapi import problems
-from station import scale_calibration as scal
-from station.record import lock_holder
-from station.worker import ConflictError
 
 router = APIRouter(prefix="/api/v1/station/scale-calibration")
 
 
 @router.get("", dependencies=[Depends(read_access)], responses=problems(401, 403, 422, 503))
-async def show(request: Request) -> dict[str, Any]:
+async def show(calibrations: ScaleCalibrationsDep) -> dict[str, Any]:
     """``{"file", "calibration", "entry"}``: the current scale calibration (its groove width, u, the
     validation session that wrote it and the checks it passed) and the history entry that made it
     current; ``calibration`` null when the station has none (it measures with the nominal width)."""
-    return await run_in_threadpool(scal.status, service_of(request).record.data_dir)
+    return await run_in_threadpool(calibrations.status)
 
 
 @router.get("/history", dependencies=[Depends(read_access)], responses=problems(401, 403, 422, 503))
-async def history(request: Request) -> dict[str, Any]:
+async def history(calibrations: ScaleCalibrationsDep) -> dict[str, Any]:
     """``{"items"}``: every change of the scale calibration, newest first (``version``, ``written_at``,
     ``action`` validation | revert | found, ``calibration``, ``previous``, ``restores``)."""
-    items = await run_in_threadpool(scal.history_json, service_of(request).record.data_dir)
+    items = await run_in_threadpool(calibrations.history)
     return {"items": items}
 
 
@@ -44,15 +41,7 @@ async def history(request: Request) -> dict[str, Any]:
     dependencies=[Depends(require_token)],
     responses=problems(401, 403, 422, 503, s409="a session runs, or there is nothing to revert to"),
 )
-async def revert(request: Request) -> dict[str, Any]:
+async def revert(calibrations: ScaleCalibrationsDep) -> dict[str, Any]:
     """Back to the calibration that was current before this one (or to none): the new history entry and
     the station's scale calibration now. 409 while a session runs, or with nothing to revert to."""
-    service = service_of(request)
-    data = service.record.data_dir
-    running = service.running
-    holder = lock_holder(data)
-    if running is not None or holder is not None:
-        sid = running.session_id if running is not None else (holder or {}).get("session_id")
-        raise ConflictError(f"session {sid} is running; revert the scale calibration once it has ended")
-    entry = await run_in_threadpool(scal.revert, data)
-    return {"entry": entry.model_dump(mode="json"), **(await run_in_threadpool(scal.status, data))}
+    return await run_in_threadpool(calibrations.revert)

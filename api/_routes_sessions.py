@@ -13,7 +13,7 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import FileResponse, Response
 
 from api._auth import check_motion, may_move, read_access, require_token
-from api._deps import SessionId, service_of
+from api._deps import Files, Measures, SessionId, service_of
 from api._errors import ApiError
 from api._models import (
     ActionRequest,
@@ -21,13 +21,14 @@ from api._models import (
     SessionCreate,
     SessionList,
     SessionModel,
+    SessionPage,
     rendered,
     session_model,
 )
 from api._openapi import binary, problems
 from api._overlay import measurement_headers
 from api._routes_station import read_body, require_type
-from station.plans import PLAN_NAMES, get_plan
+from station.kinds import KIND_NAMES, get_plan, table_rows
 
 router = APIRouter(prefix="/api/v1/sessions")
 
@@ -72,7 +73,7 @@ SESSION_LINKS = {
 def drives_devices(kind: str) -> bool:
     """Whether sessions of ``kind`` drive the station's devices (an unknown kind: no; it is refused
     later with its own answer)."""
-    return kind in PLAN_NAMES and bool(get_plan(kind).needs)
+    return kind in KIND_NAMES and bool(get_plan(kind).needs)
 
 
 @router.post(
@@ -117,7 +118,7 @@ async def list_sessions(
     # waiting on the runner) run on the loop: a hop to the thread pool and back costs more than the read;
     # a database server's in the thread pool (one that went away may keep a connection waiting)
     views, total = await quick(request, service_of(request).list_sessions, limit=limit, offset=offset)
-    return rendered(SessionList.model_construct(items=[session_model(v) for v in views], total=total))
+    return rendered(SessionPage.model_construct(items=[session_model(v) for v in views], total=total))
 
 
 @router.post(
@@ -138,14 +139,13 @@ async def list_sessions(
         ),
     },
 )
-async def import_session(request: Request) -> Response:
+async def import_session(request: Request, files: Files) -> Response:
     """Import a session from a zip written by ``/export.zip`` (or a zipped ``station export`` folder);
     the body is the zip (``Content-Type: application/zip``)."""
     require_type(request, ZIP_TYPES)
     data = await read_body(request, MAX_IMPORT_BYTES)
-    service = service_of(request)
-    row = await run_in_threadpool(service.import_zip, data, max_bytes=MAX_IMPORT_BYTES * 4)
-    return rendered(session_model(await run_in_threadpool(service.get_session, row.id)), 201)
+    row = await run_in_threadpool(files.import_zip, data, max_bytes=MAX_IMPORT_BYTES * 4)
+    return rendered(session_model(await run_in_threadpool(service_of(request).get_session, row.id)), 201)
 
 
 @router.get(
@@ -197,10 +197,10 @@ async def act(request: Request, session_id: SessionId, body: ActionRequest) -> R
         **problems(*ONE, s409="the session has no table of results (format=csv)"),
     },
 )
-async def results(request: Request, session_id: SessionId, format: Literal["json", "csv"] = "json") -> Any:
+async def results(session_id: SessionId, files: Files, format: Literal["json", "csv"] = "json") -> Any:
     """``station run --json``'s object; ``?format=csv``: the per-position (validation) or per-cycle
     (repeatability) table."""
-    outcome = await run_in_threadpool(service_of(request).results, session_id)
+    outcome = await run_in_threadpool(files.results, session_id)
     if format == "json":
         return rendered(outcome)
     rows = table_rows(outcome.kind, outcome.results)
@@ -222,65 +222,6 @@ async def results(request: Request, session_id: SessionId, format: Literal["json
     )
 
 
-def table_rows(kind: str, results: dict[str, Any]) -> list[dict[str, Any]]:
-    """The per-position rows of a validation, the per-cycle rows of a repeatability session, the
-    per-parameter rows of a calibration, the per-trial rows of a sweep; a re-analysis's as its kind's."""
-    if kind == "reanalyse":
-        inner = results.get("kind")
-        body = results.get(inner) if isinstance(inner, str) else None
-        return table_rows(inner, body) if isinstance(inner, str) and isinstance(body, dict) else []
-    if kind == "calibration":
-        return [_parameter_row(p) for p in results.get("parameters") or [] if isinstance(p, dict)]
-    if kind == "sweep":
-        return [_flat(t) for t in results.get("trials") or [] if isinstance(t, dict)]
-    if kind == "validation":
-        return [_flat(p) for p in results.get("positions", [])]
-    if kind == "repeatability":
-        out = []
-        for test, body in (results.get("tests") or {}).items():
-            points = body.get("points_mm") or body.get("points") or []
-            cycles = body.get("cycles") or list(range(len(points)))
-            for cycle, point in zip(cycles, points, strict=False):
-                out.append(
-                    {
-                        "test": test,
-                        "cycle": cycle,
-                        **{f"{a}_mm": v for a, v in zip("xyz", point, strict=False)},
-                    }
-                )
-        return out
-    return []
-
-
-def _parameter_row(p: dict[str, Any]) -> dict[str, Any]:
-    """One identified (or fixed) parameter of a calibration: its 95 % interval as two columns."""
-    interval = p.get("interval") or [None, None]
-    return {
-        "name": p.get("name"),
-        "unit": p.get("unit"),
-        "nominal": p.get("nominal"),
-        "estimate": p.get("estimate"),
-        "interval_low": interval[0],
-        "interval_high": interval[1],
-        "sigma": p.get("sigma"),
-        "identified": p.get("identified"),
-        "structural": p.get("structural"),
-    }
-
-
-def _flat(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for k, v in d.items():
-        if isinstance(v, dict):
-            out.update(_flat(v, f"{prefix}{k}."))
-        elif isinstance(v, list | tuple) and all(not isinstance(x, dict | list) for x in v):
-            for i, x in enumerate(v):
-                out[f"{prefix}{k}[{i}]"] = x
-        else:
-            out[f"{prefix}{k}"] = v
-    return out
-
-
 REPORT_409 = "the session has not ended: its report is written once it has"
 
 
@@ -298,11 +239,11 @@ REPORT_409 = "the session has not ended: its report is written once it has"
         **problems(*ONE, s409=REPORT_409),
     },
 )
-async def figure(request: Request, session_id: SessionId, name: str) -> FileResponse:
+async def figure(session_id: SessionId, name: str, files: Files) -> FileResponse:
     """A figure of the session's report (``.png`` or ``.svg``), written on first request."""
     if not _FIGURE_NAME.fullmatch(name) or not name.endswith((".png", ".svg")):
         raise ApiError(404, f"no figure {name!r}: names end in .png or .svg", "not_found")
-    folder = await run_in_threadpool(service_of(request).report_dir, session_id)
+    folder = await run_in_threadpool(files.report_dir, session_id)
     path = folder / name
     if not path.is_file():
         names = sorted(p.name for p in folder.iterdir() if p.suffix in (".png", ".svg"))
@@ -315,8 +256,8 @@ async def figure(request: Request, session_id: SessionId, name: str) -> FileResp
 @router.get(
     "/{session_id}/figures", dependencies=[Depends(read_access)], responses=problems(*ONE, s409=REPORT_409)
 )
-async def figures(request: Request, session_id: SessionId) -> dict[str, list[str]]:
-    folder = await run_in_threadpool(service_of(request).report_dir, session_id)
+async def figures(session_id: SessionId, files: Files) -> dict[str, list[str]]:
+    folder = await run_in_threadpool(files.report_dir, session_id)
     return {"figures": sorted(p.name for p in folder.iterdir() if p.suffix in (".png", ".svg"))}
 
 
@@ -332,10 +273,10 @@ _HEAD = re.compile(r"<head>", re.IGNORECASE)
         **problems(*ONE, s409=REPORT_409),
     },
 )
-async def report(request: Request, session_id: SessionId) -> Response:
+async def report(request: Request, session_id: SessionId, files: Files) -> Response:
     """The report's HTML page. Its links to the figure files are relative (``name.png``: they work in the
     report's folder on disk); served here, a ``<base>`` points them at the figure route."""
-    folder = await run_in_threadpool(service_of(request).report_dir, session_id)
+    folder = await run_in_threadpool(files.report_dir, session_id)
     pages = sorted(folder.glob("*.html"))
     if not pages:
         raise ApiError(409, "the report has no HTML page", "no_report")
@@ -361,8 +302,8 @@ async def report(request: Request, session_id: SessionId) -> Response:
         **problems(*ONE),
     },
 )
-async def export(request: Request, session_id: SessionId) -> Response:
-    sid, data = await run_in_threadpool(service_of(request).export_zip, session_id)
+async def export(session_id: SessionId, files: Files) -> Response:
+    sid, data = await run_in_threadpool(files.export_zip, session_id)
     return Response(
         data,
         media_type="application/zip",
@@ -379,8 +320,8 @@ async def export(request: Request, session_id: SessionId) -> Response:
         **problems(*ONE, s409="the session has no capture yet"),
     },
 )
-async def latest(request: Request, session_id: SessionId, overlay: bool = True) -> Response:
+async def latest(session_id: SessionId, measurements: Measures, overlay: bool = True) -> Response:
     """The session's latest capture with its measurement drawn (the live view while it runs)."""
-    picture = await run_in_threadpool(service_of(request).latest_capture_png, session_id, overlay=overlay)
+    picture = await run_in_threadpool(measurements.latest_capture_png, session_id, overlay=overlay)
     headers = {"Cache-Control": "no-store", **measurement_headers(picture.measurement)}
     return Response(picture.png, media_type="image/png", headers=headers)

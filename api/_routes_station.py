@@ -12,7 +12,7 @@ from fastapi.responses import Response
 from pydantic import BaseModel
 
 from api._auth import Access, is_loopback, motion_access, read_access, require_token
-from api._deps import service_of
+from api._deps import Measures, service_of
 from api._errors import ApiError
 from api._gate import DecodeGate
 from api._models import AccessModel, Health, StationModel, rendered
@@ -21,7 +21,7 @@ from api._overlay import measurement_headers
 from station import __version__
 from station.arm_route import ArmStatus, ToReferenceResult
 from station.imageio import DEFAULT_MAX_BYTES, ImageLimits, read_header
-from station.vision import MeasureParams
+from station.vision import field_names
 
 router = APIRouter(prefix="/api/v1")
 
@@ -66,14 +66,14 @@ async def station(request: Request) -> Response:
         **problems(401, 403, 422, 503, s409="a session owns the camera, or the station has none"),
     },
 )
-async def snapshot(request: Request, overlay: bool = False) -> Response:
+async def snapshot(measurements: Measures, overlay: bool = False) -> Response:
     """A frame from the camera (optionally with the measurement drawn on it); 409 while a session owns
     the camera: its latest capture is at ``/api/v1/sessions/{id}/latest.png`` then. A frame the
     measurement refuses (no crossing in view) is still a 200 frame: with ``overlay`` the refusal is
     written under it and sent beside it (``X-Measurement-Ok: false``, ``X-Measurement-Code``,
     ``X-Measurement-Error``); ``X-Measurement`` carries its numbers as JSON (``ok``, ``center_px``,
     ``center_mm``, ``code``, ``error``)."""
-    picture = await run_in_threadpool(service_of(request).snapshot_png, overlay=overlay)
+    picture = await run_in_threadpool(measurements.snapshot_png, overlay=overlay)
     headers = {"Cache-Control": "no-store", **measurement_headers(picture.measurement)}
     return Response(picture.png, media_type="image/png", headers=headers)
 
@@ -179,17 +179,12 @@ async def read_body(request: Request, max_bytes: int) -> bytes:
 
 def measure_query(request: Request) -> dict[str, Any]:
     """``mode`` and any ``--set`` name (case-insensitive) from the query string."""
-    names = {n.lower(): n for n in MeasureParams.model_fields}
     out: dict[str, Any] = {}
     for key, value in request.query_params.multi_items():
-        name = names.get(key.lower())
-        if name is None:
-            raise ApiError(
-                422,
-                f"unknown measurement parameter {key!r}; known: {', '.join(sorted(names))}",
-                "invalid_parameters",
-            )
-        out[name] = value
+        try:
+            out.update(field_names({key: value}, option="query parameter"))
+        except ValueError as exc:
+            raise ApiError(422, str(exc), "invalid_parameters") from None
     return out
 
 
@@ -219,7 +214,7 @@ def measure_query(request: Request) -> dict[str, Any]:
         s503="every measuring slot is taken and the queue is full (busy): try again after Retry-After",
     ),
 )
-async def measure(request: Request) -> dict[str, Any]:
+async def measure(request: Request, measurements: Measures) -> dict[str, Any]:
     """The same object as ``station measure --json`` (``ok`` true or false): the image is the raw body.
     At most one image per core is decoded at a time (the largest take every core's turn), a few more
     wait, and the rest get 503 (busy): ``api/_gate.py``."""
@@ -233,7 +228,7 @@ async def measure(request: Request) -> dict[str, Any]:
     async with gate.place():  # before the body is read: the rest get 503 without sending it
         data = await read_body(request, MAX_UPLOAD_BYTES)
         async with gate.slots_for(gate.weight(_decoded_bytes(data), limits.max_decoded_bytes)):
-            return await run_in_threadpool(service_of(request).measure_image, data, params, limits=limits)
+            return await run_in_threadpool(measurements.measure_image, data, params, limits=limits)
 
 
 def _decoded_bytes(data: bytes) -> int | None:

@@ -22,28 +22,27 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import io
 import logging
 import threading
 import time
-import zipfile
-from collections import deque
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import dataclass
 from typing import Any
 
-from api._overlay import Picture, overlay_png
+from api._event_buffer import EventBuffer
+from api._measurements import Measurements
 from api._progress import RecordedProgress
 from api._robot import RobotMirror
+from api._scale_calibrations import ScaleCalibrations
+from api._session_files import SessionFiles
+from api._settings import ServiceSettings
 from station.arm_route import ArmPose, ArmStatus, RoutePreview, RouteRejectedError, ToReferenceResult
-from station.batch import FileResult
 from station.config import ConfigurationError, StationConfig, load_config
-from station.imageio import ImageFileError, ImageLimits, decode_image
-from station.plans import PLAN_NAMES, PlanError
+from station.imageio import ImageFileError
+from station.kinds import KIND_NAMES
+from station.plans import PlanError
 from station.prompts import Prompt, PromptAnswer
 from station.record import (
-    ArchiveLimits,
     ArchiveRefusedError,
     EventRow,
     Record,
@@ -53,17 +52,15 @@ from station.record import (
     lock_holder,
     station_lock,
 )
-from station.resources import SessionOutcome
 from station.runner import ACTIVE_STATES, FINAL_STATES, Progress, RunnerState, reconcile
-from station.session import open_record, session_measure_params
-from station.vision import MeasurementError, MeasureParams, measure
+from station.session import open_record, station_measure_params
+from station.vision import field_names
 from station.worker import (
     NO_REFERENCE,
-    WORKER_NICE,
     ConflictError,
     NotAvailableError,
     RunnerStatus,
-    StationWorker,
+    WorkerClient,
     WorkerError,
     WorkerSpec,
 )
@@ -78,23 +75,6 @@ EVENT_BUFFER = 4096
 ACTIONS = ("pause", "resume", "stop", "abort")
 TO_REFERENCE_S = 600.0
 """The longest the service waits for the arm's route to its reference pose (a real arm, slow speed)."""
-
-
-@dataclass
-class ServiceSettings:
-    """What ``station serve`` was given."""
-
-    sim: bool = False
-    manual_prompts: bool = False
-    config: Path | None = None
-    data: Path | None = None
-    database: str | None = field(default=None, repr=False)  # a URL may hold a password
-    host: str = "127.0.0.1"
-    port: int = 8465
-    sim_options: dict[str, Any] = field(default_factory=dict)
-    """Extra ``build_sim_station`` options (tests: seed, time scale)."""
-    worker_nice: int = WORKER_NICE
-    """The station worker's scheduling priority (``station.worker.WorkerSpec.nice``)."""
 
 
 @dataclass(frozen=True)
@@ -113,8 +93,6 @@ class StationService:
         self.config: StationConfig | None = load_config(settings.config) if settings.config else None
         self.record: Record = open_record(settings.data, settings.database, self.config)
         self._lock = threading.RLock()
-        self._report_lock = threading.Lock()
-        self._listeners: list[Callable[[EventRow], None]] = []
         self._closed = False
         # the read caches (see the module's docstring): ``_generation`` counts the runner's state changes,
         # session creations, imports and actions; a cached read is good while it is unchanged
@@ -122,10 +100,11 @@ class StationService:
         self._row_cache: tuple[int, SessionRow] | None = None
         self._list_cache: tuple[int, float, list[SessionRow]] | None = None
         self._station_cache: tuple[tuple[Any, ...], float, dict[str, Any]] | None = None
-        self._recent: deque[EventRow] = deque(maxlen=EVENT_BUFFER)
+        self.event_buffer = EventBuffer(EVENT_BUFFER)
+        """The worker's latest session's events, and the listeners of every event."""
         self.interrupted_at_start = self._reconcile()
         try:
-            self.worker = StationWorker(
+            self.worker = WorkerClient(
                 WorkerSpec(
                     sim=settings.sim,
                     manual_prompts=settings.manual_prompts,
@@ -145,6 +124,14 @@ class StationService:
             raise
         self._identities: dict[str, Any] = dict(self.worker.info.identities)
         self._recorded = RecordedProgress(self.record)
+        self.measurements = Measurements(
+            self.record, lambda: station_measure_params(self.record, self.config)[0], self._grab
+        )
+        """Frames and uploads measured, and the stored captures shown with their measurement."""
+        self.files = SessionFiles(self.record, self.note_import)
+        """The record's session files (outcome, report, export, import)."""
+        self.scale_calibrations = ScaleCalibrations(self.record.data_dir, lambda: self.running)
+        """The station's scale calibration, its history and the revert."""
         self.robot_state = RobotMirror(lambda: self.worker.call("robot_state", timeout_s=60))
         """The robot's state and pose (read by the worker between sessions, see ``api/_robot.py``)."""
         self.robot_state.refresh()
@@ -203,16 +190,8 @@ class StationService:
 
     def subscribe(self, listener: Callable[[EventRow], None]) -> Callable[[], None]:
         """Call ``listener(event)`` for every event of the worker's sessions (from the worker handle's
-        reader thread)."""
-        with self._lock:
-            self._listeners.append(listener)
-
-        def unsubscribe() -> None:
-            with self._lock:
-                if listener in self._listeners:
-                    self._listeners.remove(listener)
-
-        return unsubscribe
+        reader thread); returns the unsubscribe."""
+        return self.event_buffer.subscribe(listener)
 
     def _on_event(self, event: EventRow) -> None:
         # the worker handle's reader thread: only quick, non-blocking work here
@@ -222,17 +201,7 @@ class StationService:
             self._generation += 1
             if event.data.get("state") in FINAL_STATES:
                 self.robot_state.refresh()  # a thread of its own: this reader thread delivers the answer
-        recent = self._recent
-        if recent and recent[-1].session_id != event.session_id:
-            recent.clear()
-        recent.append(event)
-        with self._lock:
-            listeners = list(self._listeners)
-        for listener in listeners:
-            try:
-                listener(event)
-            except Exception:
-                log.exception("event listener failed")
+        self.event_buffer.publish(event)
 
     def events(self, session_id: str | None, *, after_id: int = 0, limit: int = 500) -> list[EventRow]:
         sid = self.record.get_session(session_id).id if session_id is not None else None
@@ -240,26 +209,14 @@ class StationService:
 
     def events_after_seq(self, session_id: str, after_seq: int, *, limit: int = 500) -> list[EventRow]:
         """A session's events with ``seq > after_seq`` (its stream resumes by sequence number)."""
-        buffered = self.buffered_events(session_id, after_seq, limit=limit)
+        buffered = self.event_buffer.after(session_id, after_seq, limit=limit)
         if buffered is not None:
             return buffered
         return self.record.events(session_id, after_seq=after_seq, limit=limit)
 
     def buffered_events(self, session_id: str, after_seq: int, *, limit: int = 500) -> list[EventRow] | None:
-        """The events with ``seq > after_seq`` from the in-memory buffer of the worker's latest session,
-        or None when the buffer cannot tell (another session, or events older than the buffer's first).
-        No database read: the event streams call this on the event loop."""
-        # tuple() copies the deque in one step under the GIL (the reader thread appends meanwhile)
-        snapshot = tuple(self._recent)
-        if not snapshot or snapshot[0].session_id != session_id:
-            return None
-        start = after_seq + 1 - snapshot[0].seq
-        if start < 0:
-            return None
-        out = list(snapshot[start : start + limit])
-        if out and out[0].seq != after_seq + 1:  # the buffer is contiguous; if not, ask the record
-            return None
-        return out
+        """``EventBuffer.after``: no database read (the event streams call this on the event loop)."""
+        return self.event_buffer.after(session_id, after_seq, limit=limit)
 
     def session_ended(self, session_id: str) -> bool | None:
         """Whether the worker's run of ``session_id`` has ended (None: not the worker's latest session)."""
@@ -324,66 +281,12 @@ class StationService:
                 {"id": runner.session_id, "kind": runner.kind, "state": str(runner.state)} if runner else None
             ),
             "lock": holder,
-            "plans": list(PLAN_NAMES),
+            "plans": list(KIND_NAMES),
             "worker": {"alive": self.worker.alive, "pid": self.worker.pid, "nice": info.nice},
             "robot": robot,
         }
 
     # ------------------------------------------------------------------ measurement
-
-    def measure_image(
-        self,
-        data: bytes,
-        params: Mapping[str, Any],
-        *,
-        name: str = "upload",
-        limits: ImageLimits | None = None,
-    ) -> dict[str, Any]:
-        """The ``station measure --json`` object for an uploaded image (``ok`` false for a failed
-        measurement). ImageFileError for a file that cannot be decoded; PlanError for bad parameters."""
-        try:
-            mp = MeasureParams.model_validate(dict(params))
-        except ValueError as exc:
-            raise PlanError(f"measurement parameters: {exc}") from exc
-        loaded = decode_image(data, name=name, limits=limits)
-        bits = (
-            loaded.significant_bits
-            if loaded.significant_bits and 8 <= loaded.significant_bits <= 16
-            else None
-        )
-        try:
-            result = FileResult(name, measurement=measure(loaded.image, mp, significant_bits=bits))
-        except MeasurementError as exc:
-            result = FileResult(name, error=exc.message, code=exc.code)
-        return result.to_json()
-
-    def snapshot_png(self, *, overlay: bool = False) -> Picture:
-        """One frame from the camera as PNG (optionally with the measurement drawn, or its refusal);
-        ConflictError while a session owns the camera."""
-        image = self.worker.call("grab", timeout_s=60)
-        result = self._measure_array(image) if overlay else None
-        return Picture(overlay_png(image, result), result)
-
-    def _measure_array(self, image: Any) -> dict[str, Any]:
-        mp, _ = session_measure_params(self.record, "repeatability", {}, self.config, {})
-        try:
-            return measure(image, mp).to_json()
-        except MeasurementError as exc:
-            return {"ok": False, "error": exc.message, "code": exc.code}
-
-    def latest_capture_png(self, session_id: str, *, overlay: bool = True) -> Picture:
-        """The session's latest stored capture with its measurement drawn (the live view in a session);
-        two rows read, however many the session holds."""
-        row = self.record.get_session(session_id)
-        cap = self.record.latest_capture(row.id)  # the newest stored: a resume's prelude is not last
-        if cap is None:
-            raise ConflictError(f"session {row.id} has no capture yet")
-        image = self.record.load_image(cap)
-        result = None
-        if overlay:
-            found = self.record.latest_measurement(row.id, cap.id)
-            result = found.result if found is not None else None
-        return Picture(overlay_png(image, result), result)
 
     # ------------------------------------------------------------------ the arm outside sessions
 
@@ -435,8 +338,8 @@ class StationService:
     ) -> SessionView:
         """Create and start a session in the worker; it answers once pre-flight has passed
         (PreflightError: nothing moved). ConflictError while another one runs."""
-        if kind not in PLAN_NAMES:
-            raise PlanError(f"unknown session kind {kind!r}; known: {', '.join(PLAN_NAMES)}")
+        if kind not in KIND_NAMES:
+            raise PlanError(f"unknown session kind {kind!r}; known: {', '.join(KIND_NAMES)}")
         return self._start("create", kind, dict(params), measurement_names(assignments or {}))
 
     def _start(self, method: str, *args: Any) -> SessionView:
@@ -570,63 +473,21 @@ class StationService:
         if shown is not None and shown.id == prompt_id:
             self.worker.prompt = None
 
-    # ------------------------------------------------------------------ results, reports, export
+    def _grab(self) -> Any:
+        """One frame from the camera, grabbed by the worker (ConflictError while a session owns it)."""
+        return self.worker.call("grab", timeout_s=60)
 
-    def results(self, session_id: str) -> SessionOutcome:
-        """``station run --json``'s object for the session."""
-        return SessionOutcome.of(self.record.get_session(session_id))
-
-    def report_dir(self, session_id: str) -> Path:
-        """The session's report folder, written now if absent or older than the session's last change."""
-        from station.commands.sessions import report_document
-        from station.reporting import write_report
-
-        row = self.record.get_session(session_id)
-        if row.state in ACTIVE_STATES:
-            raise ConflictError(f"session {row.id} is {row.state}: its report is written once it has ended")
-        folder = self.record.data_dir / "reports" / row.id
-        stamp = folder / ".written"
-        # one writer at a time in this process, so that a report is written once: the second of two
-        # pages asking at once finds it written (each file's temporary name is unique, so writers in
-        # other processes, such as ``station report``, cannot collide with this one either)
-        with self._report_lock:
-            if not stamp.exists() or stamp.read_text() != row.updated_at.isoformat():
-                write_report(report_document(row), folder)
-                stamp.write_text(row.updated_at.isoformat())
-        return folder
-
-    def export_zip(self, session_id: str) -> tuple[str, bytes]:
-        """The session's export folder, zipped; with the record's own id of the session."""
-        import tempfile
-
-        row = self.record.get_session(session_id)
-        with tempfile.TemporaryDirectory() as tmp:
-            out = self.record.export_session(row.id, Path(tmp) / row.id)
-            buf = io.BytesIO()
-            with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
-                for path in sorted(out.rglob("*")):
-                    if path.is_file():
-                        zf.write(path, Path(row.id) / path.relative_to(out))
-            return row.id, buf.getvalue()
-
-    def import_zip(self, data: bytes, *, max_bytes: int) -> SessionRow:
-        """Import an uploaded zip of an export: the record's one import path (``station import`` too),
-        with the upload's caps; ImportRefusedError (HTTP 422) names what is refused."""
-        row = self.record.import_archive(io.BytesIO(data), limits=ArchiveLimits(max_total_bytes=max_bytes))
+    def note_import(self) -> None:
+        """A session was imported into the record: the cached reads are stale."""
         self._generation += 1
-        return row
 
 
 def measurement_names(values: Mapping[str, Any]) -> dict[str, Any]:
     """``--set`` names, case-insensitive (``TESTWIDTH`` is ``testwidth``); PlanError for an unknown one."""
-    names = {n.lower(): n for n in MeasureParams.model_fields}
-    out: dict[str, Any] = {}
-    for key, value in values.items():
-        name = names.get(key.lower())
-        if name is None:
-            raise PlanError(f"unknown measurement parameter {key!r}; known: {', '.join(sorted(names))}")
-        out[name] = value
-    return out
+    try:
+        return field_names(values, option="set")
+    except ValueError as exc:
+        raise PlanError(str(exc)) from None
 
 
 ImportArchiveError = ArchiveRefusedError

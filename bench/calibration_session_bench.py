@@ -23,7 +23,7 @@ from typing import Any
 from sim.calibration_truth import pointing_errors_um, truth_report
 from sim.station import build_sim_station
 from station.calibration import CalibrationResult
-from station.plans.calibration import calibration_cell_from_config
+from station.kinds.calibration.params import calibration_cell_from_config
 from station.runner import stored_captures
 from station.session import open_record, run_session
 from station.vision import MeasureParams

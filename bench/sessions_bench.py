@@ -27,7 +27,8 @@ import numpy as np
 from bench.record_bench import rss_mb
 from sim._controller_arm import trapezoid_time
 from sim.station import build_sim_station
-from station.plans import get_plan, parse_params
+from station.kinds import get_plan
+from station.plans import parse_params
 from station.record import EventRow, Record
 from station.runner import RunnerState, SessionRunner
 from station.testing import FakeCamera, FakeStation, draw_cross

@@ -16,7 +16,7 @@ import signal
 import sys
 import threading
 
-from station.plans.repeatability import SEED_TABLE2_MM
+from station.kinds.repeatability.plan import SEED_TABLE2_MM
 from station.runner import SessionRunner
 from station.session import SessionOutcome, run_session
 

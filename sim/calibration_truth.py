@@ -22,11 +22,12 @@ import numpy.typing as npt
 
 from sim.world import World, WorldSpec
 from station.calibration import CalibrationModel, CalibrationResult, relative_error_um, true_values
-from station.calibration_session import calibration_setup, observations_from
 from station.config import StationDevices
+from station.kinds.calibration.analysis import calibration_setup, observations_from
+from station.kinds.calibration.params import CalibrationCell
+from station.kinds.calibration.plan import LOOK_DOWN
 from station.kinematics import rot_x, rot_y, rot_z, transform
 from station.plans import CaptureResult
-from station.plans.calibration import LOOK_DOWN, CalibrationCell
 from station.vision import MeasureParams
 
 FloatArray = npt.NDArray[np.float64]
@@ -111,9 +112,8 @@ def pointing_errors_um(
     ``devices`` must be connected (robot, camera). None where the crossing is not measured (out of view
     or focus). The arm settles ``settle_s`` (wall time) before each capture.
     """
-    from station.calibration_session import calibration_setup
     from station.camera_moves import move_camera
-    from station.plans.calibration import square_on
+    from station.kinds.calibration.plan import square_on
     from station.vision import MeasurementError, measure
 
     robot = devices.robot

@@ -4,7 +4,7 @@ The controller twin's own arm model (``ControllerTwin(...).arm``, never started:
 injected clock and the world follows it, with the flange's Cartesian error indexed by the arm's motions;
 after each return to the reference pose the capture is the world's true tool point (where the optical
 axis meets the artifact, relative to the crossing, in the artifact's axes: the position the
-repeatability plan measures, ``station/plans/repeatability.py``), what a perfect measurement gives.
+repeatability plan measures, ``station/kinds/repeatability/plan.py``), what a perfect measurement gives.
 This is what fits :mod:`sim.arm_errors` to the seed's Table 2 and what the station's simulated
 sessions are compared with.
 

@@ -31,9 +31,9 @@ from station.config import (
     build,
 )
 from station.devices import DistanceSensor, Robot, XYTable
+from station.kinds.calibration.plan import LOOK_DOWN, square_on
 from station.kinematics import Kinematics, transform
 from station.mounts import MountBody
-from station.plans.calibration import LOOK_DOWN, square_on
 from station.prompts import PromptBroker
 
 #: The simulated Z sensor's mount in the camera frame: 30 mm beside the optical axis, beam parallel to
@@ -232,7 +232,7 @@ def taught_normals(world: World, *, digits: int | None = 3) -> list[tuple[float,
 
 def taught_turns_deg(world: World, *, digits: int | None = 1) -> list[float]:
     """Each artifact's yaw as a person would teach it: the camera turn (about its axis, from square on
-    with the image's x along the base's -x, see ``station.plans.calibration``) at which the cross
+    with the image's x along the base's -x, see ``station.kinds.calibration.plan``) at which the cross
     appears square."""
     out = []
     for T, up in zip(

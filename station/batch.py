@@ -83,7 +83,7 @@ def measure_file(path: str | Path, params: AnyParams, limits: ImageLimits | None
         loaded = load_image(path, limits=limits)
     except ImageFileError as exc:
         return FileResult.for_path(path, error=exc.reason, code=exc.code)
-    return _measure_loaded(path, loaded, params)
+    return measure_loaded(path, loaded, params)
 
 
 def measure_data(
@@ -94,10 +94,12 @@ def measure_data(
         loaded = decode_image(data, name=name, limits=limits)
     except ImageFileError as exc:
         return FileResult.for_path(name, error=exc.reason, code=exc.code)
-    return _measure_loaded(name, loaded, params)
+    return measure_loaded(name, loaded, params)
 
 
-def _measure_loaded(name: str | Path, loaded: LoadedImage, params: AnyParams) -> FileResult:
+def measure_loaded(name: str | Path, loaded: LoadedImage, params: AnyParams) -> FileResult:
+    """Measure a decoded image named ``name`` (its significant bits as the file declared them); the one
+    rule every caller (files, uploads) measures an image by: never raises for a measurement's failure."""
     bits = loaded.significant_bits if loaded.significant_bits and 8 <= loaded.significant_bits <= 16 else None
     try:
         if isinstance(params, RulerParams):

@@ -4,9 +4,15 @@ by the service's API (``api/``) alike.
 * :class:`SessionSummary`: a session as ``station sessions --json`` lists it (the record's row without
   its configuration, identities and software);
 * :class:`SessionResource`: the API's session resource, the summary plus the live ``progress``
-  (``{"done", "total", "eta_s"}``) and ``results`` always an object (``{}`` before there are any);
+  (``station.runner.Progress``: ``{"done", "total", "eta_s"}``) and ``results`` always an object
+  (``{}`` before there are any);
 * :class:`SessionOutcome`: ``station run --json``'s object, ``{"id", "kind", "state", "results",
   "error"}``, which is also ``GET /api/v1/sessions/{id}/results``.
+
+``TypedSessionResource`` and ``TypedSessionOutcome`` are the same objects as the API's OpenAPI document
+publishes them: a union discriminated on ``kind`` whose ``results`` is that kind's typed results model
+(``station.kinds``). They document; they are never used to render (the results are the analysis's own
+object, shown as recorded).
 
 The keys are a contract (scripts read them): change them only with the CLI's and the API's docs.
 """
@@ -14,26 +20,14 @@ The keys are a contract (scripts read them): change them only with the CLI's and
 from __future__ import annotations
 
 import json
-from typing import Any
+from typing import Annotated, Any, Literal, TypeVar, Union
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, create_model
 
+from station.kinds import KINDS
+from station.plans._kind import Kind
 from station.record import SessionRow
 from station.runner import Progress, RunnerState
-
-
-class ProgressModel(BaseModel):
-    """A session's progress: steps done of the plan's total, and the estimated time left (s)."""
-
-    model_config = ConfigDict(frozen=True)
-
-    done: int = Field(ge=0)
-    total: int = Field(ge=0)
-    eta_s: float | None = None
-
-    @classmethod
-    def of(cls, progress: Progress) -> ProgressModel:
-        return cls.model_construct(done=progress.done, total=progress.total, eta_s=progress.eta_s)
 
 
 class SessionSummary(BaseModel):
@@ -76,13 +70,13 @@ class SessionResource(SessionSummary):
     """The API's session resource: the summary, its results always an object, and the live progress."""
 
     results: dict[str, Any]
-    progress: ProgressModel
+    progress: Progress
 
     @classmethod
     def of_row(cls, row: SessionRow, progress: Progress) -> SessionResource:
         fields = cls.fields_of(row)
         fields["results"] = fields["results"] or {}
-        return cls.model_construct(**fields, progress=ProgressModel.of(progress))
+        return cls.model_construct(**fields, progress=progress)
 
 
 class SessionOutcome(BaseModel):
@@ -105,6 +99,48 @@ class SessionOutcome(BaseModel):
         return self.model_dump()
 
 
+def report_document(row: SessionRow) -> dict[str, Any]:
+    """What ``station.reporting.write_report`` takes: the session object (``station sessions --json``'s)
+    with its identities and software."""
+    return {**SessionSummary.of(row).model_dump(), "identities": row.identities, "software": row.software}
+
+
+class NoResults(BaseModel):
+    """``{}``: the session has no results (yet)."""
+
+    model_config = ConfigDict(extra="forbid", title="NoResults")
+
+
+M = TypeVar("M", bound=BaseModel)
+
+
+def _variant(base: type[M], kind: Kind, suffix: str) -> type[M]:
+    title = "".join(part.capitalize() for part in kind.name.split("_")) + suffix
+    literal: Any = Literal[kind.name]  # a kind's name, known at run time
+    results: Any = kind.results | NoResults
+    return create_model(
+        title,
+        __base__=base,
+        __module__=__name__,
+        kind=(literal, Field(description="the session's kind")),
+        results=(
+            results,
+            Field(description=f"the {kind.name} analysis's results ({{}} before there are any)"),
+        ),
+    )
+
+
+def by_kind(base: type[M], suffix: str) -> Any:
+    """``base`` as one model per registered kind (``kind`` a literal, ``results`` that kind's results
+    model), discriminated on ``kind``: what the OpenAPI document shows."""
+    variants = tuple(_variant(base, k, suffix) for k in KINDS.values())
+    return Annotated[Union[variants], Field(discriminator="kind")]  # noqa: UP007 - built at run time
+
+
+TypedSessionResource = by_kind(SessionResource, "Session")
+TypedSessionOutcome = by_kind(SessionOutcome, "Outcome")
+
+
 def dumps(model: BaseModel | list[Any]) -> str:
     """The CLI's rendering of a model (or a list of them): one line of JSON, as ``json.dumps`` writes it
     (the state enum is a string; a NaN in a result prints as ``NaN``, as it always has)."""
@@ -113,4 +149,14 @@ def dumps(model: BaseModel | list[Any]) -> str:
     return json.dumps(model.model_dump())
 
 
-__all__ = ["ProgressModel", "SessionOutcome", "SessionResource", "SessionSummary", "dumps"]
+__all__ = [
+    "NoResults",
+    "SessionOutcome",
+    "SessionResource",
+    "SessionSummary",
+    "TypedSessionOutcome",
+    "TypedSessionResource",
+    "by_kind",
+    "dumps",
+    "report_document",
+]

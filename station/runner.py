@@ -44,11 +44,10 @@ import time
 from collections import deque
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel
+from pydantic import BaseModel, ConfigDict, Field
 
 from station import __version__, scale_calibration
 from station.arm_route import TO_REFERENCE_HINT, describe_offset, go_to_reference, max_step_of, plan_route
@@ -68,7 +67,9 @@ from station.devices import (
     SensorAlarmError,
     StopLatchedError,
 )
+from station.kinds import get_plan
 from station.plans import (
+    Action,
     Align,
     AlignInput,
     AlignSkippedError,
@@ -84,6 +85,7 @@ from station.plans import (
     SetSpeed,
     Settle,
     Step,
+    station_cell,
 )
 from station.plans._gates import verdict
 from station.prompts import PromptError, PromptEvent
@@ -158,14 +160,18 @@ class _StopRequestedError(Exception):
     """Raised at a safe point when a stop was requested."""
 
 
-@dataclass(frozen=True)
-class Progress:
-    done: int
-    total: int
-    eta_s: float | None
+class Progress(BaseModel):
+    """A session's progress: steps done of the plan's total, and the estimated time left (s); the API's
+    ``progress`` and the ``step_finished`` event's."""
+
+    model_config = ConfigDict(frozen=True)
+
+    done: int = Field(ge=0)
+    total: int = Field(ge=0)
+    eta_s: float | None = None
 
     def to_json(self) -> dict[str, Any]:
-        return {"done": self.done, "total": self.total, "eta_s": self.eta_s}
+        return self.model_dump()
 
 
 def software_info() -> dict[str, str]:
@@ -289,7 +295,7 @@ class SessionRunner:
             if self._t_steps and total:
                 per = sum(self._t_steps) / len(self._t_steps)
                 eta = round(per * (total - done), 1)
-            return Progress(done, total, eta)
+            return Progress.model_construct(done=done, total=total, eta_s=eta)
 
     def subscribe(self, listener: Callable[[EventRow], None]) -> Callable[[], None]:
         """Call ``listener(event)`` for every event of this session (from the runner's thread)."""
@@ -576,7 +582,8 @@ class SessionRunner:
             record=self.record,
             session_id=sid,
             jobs=self.jobs,
-            calibration=calibration_cell(devices, self.measure_params),
+            cell=station_cell(self.plan, _config_of(devices), self.measure_params),
+            plan_of=get_plan,
             compute=self.compute,
             cancelled=lambda: self._abort,
         )
@@ -815,7 +822,7 @@ class SessionRunner:
                     raise _AbortRequestedError()
                 self._check_store()
                 if isinstance(action, Capture):
-                    grabbed.append(self._grab(sid, step, action))
+                    grabbed.append(self._grab(action))
                 elif isinstance(action, Align):
                     try:
                         data.update(self._align(sid, step, action, grabbed))
@@ -824,7 +831,7 @@ class SessionRunner:
                         self._event("warning", {"message": f"{step.name}: {skipped}"})
                         break
                 else:
-                    data.update(self._act(sid, step, action, ctx))
+                    data.update(self._act(step, action, ctx))
         except BaseException as exc:
             # what was grabbed before the failure is still stored (nothing captured is lost)
             reason = str(exc) or type(exc).__name__
@@ -898,46 +905,59 @@ class SessionRunner:
         for f in list(self._store_futures):
             f.exception()
 
-    def _act(self, sid: str, step: Step, action: Any, ctx: PlanContext) -> dict[str, Any]:
-        devices = self.devices
-        if isinstance(action, Compute):
-            return action.run(ctx)
-        assert devices is not None
-        if isinstance(action, SetSpeed):
-            require(devices.robot, "robot").set_speed(action.percent)
-        elif isinstance(action, MoveJoints):
-            require(devices.robot, "robot").move_joints(action.target_deg)
-            self._offset_base = tuple(action.target_deg)
-        elif isinstance(action, MoveOffset):
-            robot = require(devices.robot, "robot")
-            if self._offset_base is None:
-                raise PlanError("a MoveOffset needs a MoveJoints or an Align before it in its step")
-            target = tuple(b + o for b, o in zip(self._offset_base, action.offset_deg, strict=True))
-            robot.check_move(target)  # from where the arm is: the aligned pose differs from the planned one
-            robot.move_joints(target)
-        elif isinstance(action, MoveTable):
-            table = require(devices.table, "table")
-            timeout = getattr(self.params, "prompt_timeout_s", None)
-            # the operator's prompt says which position of how many, whether this is the overshoot, and
-            # whether it is a resume's check of the last confirmed position
-            at = step.meta.get("position")  # a resume's check repeats an earlier position
-            details: dict[str, str | float] = {
-                "position": (at if isinstance(at, int) else step.index) + 1,
-                "positions": self._total,
-                "move": "overshoot" if action.overshoot else "position",
-            }
-            if step.meta.get("role") == "resume_check":
-                details["purpose"] = "resume_check"
-            with devices.broker.context(**details):
-                pos = table.move_to(action.x_mm, action.y_mm, timeout_s=timeout)
-            return {} if action.overshoot else {"table_confirmed_mm": [pos.x_mm, pos.y_mm]}
-        elif isinstance(action, Settle):
-            with self._lock:
-                self._cond.wait_for(lambda: self._abort, timeout=action.seconds)
-            if self._abort:
-                raise _AbortRequestedError()
-        else:
+    def _act(self, step: Step, action: Action, ctx: PlanContext) -> dict[str, Any]:
+        """Run one action through its handler (``_HANDLERS``, keyed by the action's type); the step's
+        data it adds."""
+        handler = _HANDLERS.get(type(action))
+        if handler is None:
             raise PlanError(f"unknown action {action!r}")
+        return handler(self, step, action, ctx)
+
+    def _devices(self) -> StationDevices:
+        assert self.devices is not None  # a plan with device actions runs with devices (pre-flight)
+        return self.devices
+
+    def _set_speed(self, action: SetSpeed) -> dict[str, Any]:
+        require(self._devices().robot, "robot").set_speed(action.percent)
+        return {}
+
+    def _move_joints(self, action: MoveJoints) -> dict[str, Any]:
+        require(self._devices().robot, "robot").move_joints(action.target_deg)
+        self._offset_base = tuple(action.target_deg)
+        return {}
+
+    def _move_offset(self, action: MoveOffset) -> dict[str, Any]:
+        robot = require(self._devices().robot, "robot")
+        if self._offset_base is None:
+            raise PlanError("a MoveOffset needs a MoveJoints or an Align before it in its step")
+        target = tuple(b + o for b, o in zip(self._offset_base, action.offset_deg, strict=True))
+        robot.check_move(target)  # from where the arm is: the aligned pose differs from the planned one
+        robot.move_joints(target)
+        return {}
+
+    def _move_table(self, step: Step, action: MoveTable) -> dict[str, Any]:
+        devices = self._devices()
+        table = require(devices.table, "table")
+        timeout = getattr(self.params, "prompt_timeout_s", None)
+        # the operator's prompt says which position of how many, whether this is the overshoot, and
+        # whether it is a resume's check of the last confirmed position
+        at = step.meta.get("position")  # a resume's check repeats an earlier position
+        details: dict[str, str | float] = {
+            "position": (at if isinstance(at, int) else step.index) + 1,
+            "positions": self._total,
+            "move": "overshoot" if action.overshoot else "position",
+        }
+        if step.meta.get("role") == "resume_check":
+            details["purpose"] = "resume_check"
+        with devices.broker.context(**details):
+            pos = table.move_to(action.x_mm, action.y_mm, timeout_s=timeout)
+        return {} if action.overshoot else {"table_confirmed_mm": [pos.x_mm, pos.y_mm]}
+
+    def _settle(self, action: Settle) -> dict[str, Any]:
+        with self._lock:
+            self._cond.wait_for(lambda: self._abort, timeout=action.seconds)
+        if self._abort:
+            raise _AbortRequestedError()
         return {}
 
     def _align(
@@ -954,7 +974,7 @@ class SessionRunner:
         planned = action.planned_deg
         corrections: list[dict[str, Any]] = []
         for iteration in range(action.max_iterations + 1):
-            capture = self._grab(sid, step, Capture(1, {**action.meta, "iteration": iteration}))
+            capture = self._grab(Capture(1, {**action.meta, "iteration": iteration}))
             grabbed.append(capture)  # stored like any capture: nothing captured is lost
             frames, meta, _ = capture
             z_mm = meta.get("z_mm")  # the distance sensor's reading with the frame (None without one)
@@ -997,7 +1017,7 @@ class SessionRunner:
             f"not aligned after {action.max_iterations} corrections: configuration skipped"
         )
 
-    def _grab(self, sid: str, step: Step, action: Capture) -> tuple[list[Frame], dict[str, Any], int]:
+    def _grab(self, action: Capture) -> tuple[list[Frame], dict[str, Any], int]:
         """In the runner thread (the devices' only user): where the arm is, then the frames."""
         devices = self.devices
         assert devices is not None
@@ -1158,6 +1178,20 @@ class SessionRunner:
                     self._set_state(RunnerState.PAUSING if self._pause else RunnerState.RUNNING)
 
 
+Handler = Callable[[SessionRunner, Step, Any, PlanContext], dict[str, Any]]
+
+_HANDLERS: dict[type, Handler] = {
+    Compute: lambda runner, step, action, ctx: action.run(ctx),
+    SetSpeed: lambda runner, step, action, ctx: runner._set_speed(action),
+    MoveJoints: lambda runner, step, action, ctx: runner._move_joints(action),
+    MoveOffset: lambda runner, step, action, ctx: runner._move_offset(action),
+    MoveTable: lambda runner, step, action, ctx: runner._move_table(step, action),
+    Settle: lambda runner, step, action, ctx: runner._settle(action),
+}
+"""The action executor: each action type's handler (a capture and an align are the step's own: they
+need the frames grabbed so far); a handler takes what it uses."""
+
+
 def require(device: Any, name: str) -> Any:
     if device is None:
         raise SessionError(f"this step needs the {name}, which the station configuration does not have")
@@ -1195,6 +1229,12 @@ def stored_captures(record: Record, source: str, *, measured_in: str | None = No
     return out
 
 
+def _config_of(devices: StationDevices | None) -> dict[str, Any] | None:
+    """The live station's configuration as JSON (what a plan's ``cell_from_config`` reads); ``None``
+    without devices (an offline session)."""
+    return devices.config.model_dump(mode="json") if devices is not None else None
+
+
 def step_moves(step: Step) -> bool:
     return any(isinstance(a, MoveJoints | MoveTable | MoveOffset | Align) for a in step.actions)
 
@@ -1207,13 +1247,3 @@ def camera_height_function(devices: StationDevices | None) -> Callable[[Sequence
     from station.plans._recorded import camera_height_function as from_safety
 
     return from_safety(devices.config.robot.safety)
-
-
-def calibration_cell(devices: StationDevices | None, measure_params: MeasureParams) -> Any:
-    """The calibration plan's view of the cell (``CalibrationCell``) from the station's configuration;
-    ``None`` when it lacks ``[calibration]``, the robot or the distance sensor."""
-    if devices is None or devices.distance_sensor is None:
-        return None
-    from station.plans.calibration import calibration_cell_from_config
-
-    return calibration_cell_from_config(devices.config.model_dump(mode="json"), measure_params)

@@ -102,6 +102,15 @@ def _write_json(doc: Mapping[str, Any], p: Path) -> Path:
     return p
 
 
+def width_unless_set(calibration: ScaleCalibration | None, assignments: Mapping[str, Any]) -> dict[str, Any]:
+    """The measurement value a scale calibration gives, ``{"groove_width_mm": ...}``, unless
+    ``assignments`` (``--set``, keyed by the parameter model's field names) set the width themselves:
+    ``--set`` wins. ``{}`` without a calibration."""
+    if calibration is None or "groove_width_mm" in assignments:
+        return {}
+    return {"groove_width_mm": calibration.groove_width_mm}
+
+
 def station_file(data_dir: str | Path) -> Path:
     """Where a station keeps its current scale calibration."""
     return Path(data_dir) / FILE_NAME

@@ -1,7 +1,7 @@
 """Scripted sessions: one function that builds the station, runs a plan and returns its outcome.
 
-The CLI's ``station run`` and the example scripts use exactly this; the service (``api/``) uses the
-runner and the record directly, with the same building blocks::
+The CLI's ``station run`` and the example scripts use exactly this; the service's worker
+(``station.worker``) runs its sessions with the same building blocks::
 
     from station.session import run_session
     outcome = run_session("repeatability", sim=True, params={"cycles": 10})
@@ -29,11 +29,12 @@ from station.config import (
     open_sim_station,
 )
 from station.config import open_station as build_station
-from station.plans import PlanError, get_plan, parse_params
+from station.kinds import KIND_NAMES, get_kind, get_plan
+from station.plans import PlanError, parse_params
 from station.record import EventRow, Record, SessionRow
 from station.resources import SessionOutcome
 from station.runner import SessionError, SessionRunner
-from station.vision import MeasureParams
+from station.vision import MeasureParams, field_names
 
 log = logging.getLogger(__name__)
 
@@ -70,19 +71,35 @@ def measure_params_for(
     calibration: scal.ScaleCalibration | None,
     source: str | Path | None = None,
 ) -> tuple[MeasureParams, dict[str, Any] | None]:
-    """The session's measurement parameters: plan default (paper for a sweep), then the configuration's
-    or the source session's, then ``--set``; the scale calibration's groove width unless ``--set`` sets
-    one."""
-    values: dict[str, Any] = {"mode": "paper"} if kind == "sweep" else {}
-    values.update(base or {})
-    if calibration is not None and "groove_width_mm" not in {k.lower() for k in assignments}:
-        values["groove_width_mm"] = calibration.groove_width_mm
-    values.update(assignments)
+    """The session's measurement parameters: the kind's defaults (paper for a sweep), then the
+    configuration's or the source session's, then ``--set``; the scale calibration's groove width unless
+    ``--set`` sets one."""
+    return _measure_params(get_kind(kind).measure_defaults, base, assignments, calibration, source)
+
+
+def _measure_params(
+    defaults: Mapping[str, Any],
+    base: Mapping[str, Any] | None,
+    assignments: Mapping[str, Any],
+    calibration: scal.ScaleCalibration | None,
+    source: str | Path | None,
+) -> tuple[MeasureParams, dict[str, Any] | None]:
     try:
-        params = MeasureParams.model_validate(values)
+        given = field_names(assignments)
+        values = {**defaults, **(base or {}), **scal.width_unless_set(calibration, given)}
+        params = MeasureParams.model_validate({**values, **given})
     except ValueError as exc:
         raise PlanError(f"measurement parameters: {exc}") from exc
     return params, calibration.record(source) if calibration is not None else None
+
+
+def station_measure_params(
+    record: Record, cfg: StationConfig | None
+) -> tuple[MeasureParams, dict[str, Any] | None]:
+    """The station's own measurement parameters (a frame measured outside a session: the operator
+    page's overlay): the configuration's, with the station's scale calibration's groove width."""
+    calibration, source = _calibration(record, cfg, station_file=True)
+    return _measure_params({}, dict(cfg.measure) if cfg is not None else {}, {}, calibration, source)
 
 
 @contextlib.contextmanager
@@ -144,7 +161,7 @@ def run_session(
                 raise SessionError(f"session {previous.id} succeeded; there is nothing to resume")
             kind = previous.kind
         if kind is None:
-            raise PlanError("give a session kind (validation, repeatability, sweep, reanalyse) or resume")
+            raise PlanError(f"give a session kind ({', '.join(KIND_NAMES)}) or resume")
         plan = get_plan(kind)
         plan_values = dict(previous.params.get("plan", {})) if previous is not None else dict(params or {})
         plan_params = parse_params(plan, plan_values)
@@ -206,35 +223,33 @@ def session_measure_params(
     """A new session's measurement parameters and scale calibration record (``station run`` and the
     service alike): the station's scale calibration, the configuration's or source session's
     parameters, then ``assignments`` (``--set``)."""
-    calibration, cal_source = _calibration(record, cfg, kind)
-    base = _measure_base(record, kind, plan_values, cfg)
+    entry = get_kind(kind)
+    source = (
+        record.get_session(str(plan_values["session"]))
+        if entry.remeasures_source and "session" in plan_values
+        else None
+    )
+    calibration, cal_source = _calibration(record, cfg, station_file=entry.scale_calibrated)
+    if source is not None:
+        base = dict(source.params.get("measure", {}))
+    else:
+        base = dict(cfg.measure) if cfg is not None else {}
     params, cal_doc = measure_params_for(kind, base, dict(assignments or {}), calibration, cal_source)
-    if (
-        cal_doc is None
-        and kind == "reanalyse"
-        and "session" in plan_values
-        and "groove_width_mm" not in {k.lower() for k in (assignments or {})}
-    ):
+    if cal_doc is None and source is not None and "groove_width_mm" not in field_names(assignments or {}):
         # the source's measurement parameters carry its scale calibration's groove width: so does its
         # record of where that width came from
-        cal_doc = record.get_session(str(plan_values["session"])).params.get("scale_calibration")
+        cal_doc = source.params.get("scale_calibration")
     return params, cal_doc
 
 
 def _calibration(
-    record: Record, cfg: StationConfig | None, kind: str
+    record: Record, cfg: StationConfig | None, *, station_file: bool
 ) -> tuple[scal.ScaleCalibration | None, Path | None]:
+    """The configuration's scale calibration, else (``station_file``: for kinds it applies to) the
+    station's own in the data directory, when there is one."""
     if cfg is not None and cfg.scale_calibration is not None:
         return scal.load(cfg.scale_calibration), cfg.scale_calibration
     path = scal.station_file(record.data_dir)
-    if kind in ("validation", "repeatability") and path.exists():
+    if station_file and path.exists():
         return scal.load(path), path
     return None, None
-
-
-def _measure_base(
-    record: Record, kind: str, plan_values: Mapping[str, Any], cfg: StationConfig | None
-) -> dict[str, Any]:
-    if kind == "reanalyse" and "session" in plan_values:
-        return dict(record.get_session(str(plan_values["session"])).params.get("measure", {}))
-    return dict(cfg.measure) if cfg is not None else {}

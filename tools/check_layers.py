@@ -42,7 +42,6 @@ PURE_SCIENCE = (
 #: Session code: what runs, hosts, stores or shows a session (the record is listed apart).
 SESSION_CODE = (
     "station.session",
-    "station.calibration_session",
     "station.runner",
     "station.worker",
     "station.plans",
@@ -104,24 +103,9 @@ class KnownCycle:
     issue: str
 
 
-#: The cycles inside the session code, removed by issue 21's session side (branch i21-kinds); the lead
-#: deletes this entry once that branch is merged. No other cycle is tolerated.
-KNOWN_CYCLES: tuple[KnownCycle, ...] = (
-    KnownCycle(
-        frozenset(
-            {
-                "station.calibration_session",
-                "station.plans",
-                "station.plans._analysis",
-                "station.plans.calibration",
-                "station.plans.offline",
-                "station.plans.repeatability",
-                "station.plans.validation",
-            }
-        ),
-        "issue 21 (the session kinds' home): station/plans/* <-> calibration_session <-> plans/__init__",
-    ),
-)
+#: Cycles tolerated until the named issue removes them (none now: issue 21 removed the last, the session
+#: code's plans <-> calibration_session circle). A new entry needs an issue that removes it.
+KNOWN_CYCLES: tuple[KnownCycle, ...] = ()
 
 
 @dataclass(frozen=True)

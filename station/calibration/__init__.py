@@ -40,6 +40,7 @@ from station.calibration._observations import (
 from station.calibration._result import (
     SCHEMA_VERSION,
     CalibrationResult,
+    FitSummary,
     Magnification,
     ParameterEstimate,
     ResidualSummary,
@@ -65,6 +66,7 @@ __all__ = [
     "CalibrationSetup",
     "CameraModel",
     "Deficiency",
+    "FitSummary",
     "IdentifiabilityReport",
     "Magnification",
     "MagnificationCheck",

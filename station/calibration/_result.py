@@ -93,9 +93,9 @@ class ResidualSummary(_Model):
     n: int
     rms_xy_mm: float
     max_xy_mm: float
-    n_z: int
-    rms_z_mm: float | None
-    max_z_mm: float | None
+    n_z: int = 0
+    rms_z_mm: float | None = None
+    max_z_mm: float | None = None
     xy_um: list[float] | None = Field(
         default=None,
         description="each observation's image residual (µm, the in-plane distance), in observation order",
@@ -191,7 +191,7 @@ class FitSummary(_Model):
     method: str
     evaluations: int
     status: int
-    message: str
+    message: str = ""
     observations: int
     residuals: int
     dof: int

@@ -20,7 +20,8 @@ from pathlib import Path
 from typing import Any
 
 from station.commands._parsing import SubParsers, add_record_options
-from station.commands.run import parse_params, summary
+from station.commands.run import parse_params
+from station.kinds import summary
 from station.plans import PlanError
 
 
@@ -50,9 +51,10 @@ ANALYSIS_PARAMS = ("holdout_fraction", "seed", "loss", "f_scale")
 
 def run_calibrate(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     from station.calibration import CalibrationResult
-    from station.calibration_session import analyse_calibration
+    from station.kinds.calibration.analysis import analyse_calibration
+    from station.kinds.calibration.params import calibration_cell_from_config
+    from station.kinds.calibration.plan import CALIBRATION
     from station.plans import parse_params as validate_params
-    from station.plans.calibration import CALIBRATION, calibration_cell_from_config
     from station.record import RecordError
     from station.resources import SessionOutcome, dumps
     from station.runner import RunnerState, stored_captures
@@ -98,7 +100,8 @@ def run_calibrate(parser: argparse.ArgumentParser, args: argparse.Namespace) -> 
                     f"session {session.id}'s configuration snapshot has no [calibration] section, robot or"
                     " distance sensor: it cannot be identified"
                 )
-            results = analyse_calibration(params, cell, stored_captures(record, session.id))
+            planned = len(CALIBRATION.configurations(params, cell))
+            results = analyse_calibration(params, cell, stored_captures(record, session.id), planned=planned)
         except PlanError as exc:
             print(f"station calibrate: {exc}", file=sys.stderr)
             return 1

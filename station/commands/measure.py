@@ -30,7 +30,7 @@ from station.imageio import (
     read_file_bytes,
 )
 from station.report import measurement_rows
-from station.vision import MeasureParams, RulerParams
+from station.vision import MeasureParams, RulerParams, parse_assignments
 
 
 def register(sub: SubParsers) -> None:
@@ -103,8 +103,8 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
             parser.error(f"--scale-calibration {exc}")
         except scale_calibration.ScaleCalibrationError as exc:
             parser.error(str(exc))
-        if not any(a.split("=", 1)[0].strip().lower() == "groove_width_mm" for a in args.assignments):
-            params = params.with_values(groove_width_mm=cal.groove_width_mm)
+        given = parse_assignments(args.assignments)  # checked by params_from_args
+        params = params.with_values(**scale_calibration.width_unless_set(cal, given))
         calibration = cal.record(args.scale_calibration)
     return _measure(parser, args, params, calibration, spec)
 

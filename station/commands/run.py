@@ -22,7 +22,8 @@ from station.commands._common import add_compute_options, compute_spec
 from station.commands._parsing import SubParsers, add_record_options
 from station.config import ConfigurationError
 from station.devices import DeviceError
-from station.plans import PLAN_NAMES, PlanError
+from station.kinds import KIND_NAMES, summary
+from station.plans import PlanError
 from station.record import EventRow, RecordError, SessionLockError
 from station.resources import dumps
 from station.runner import SessionError, SessionRunner
@@ -38,7 +39,7 @@ def register(sub: SubParsers) -> None:
         description="Run one session on the simulated station (--sim) or a configured one (--config), "
         "record everything, and print its results. sweep and reanalyse need no station.",
     )
-    p.add_argument("kind", nargs="?", choices=PLAN_NAMES, help="the session's plan")
+    p.add_argument("kind", nargs="?", choices=KIND_NAMES, help="the session's plan")
     p.add_argument("--resume", metavar="ID", help="continue an interrupted session after its last step")
     where = p.add_mutually_exclusive_group()
     where.add_argument("--sim", action="store_true", help="the simulated station")
@@ -237,67 +238,3 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     if received:
         return signals[received[0]]
     return 0 if outcome.state == "succeeded" else 1
-
-
-def summary(kind: str, results: dict[str, Any]) -> str:
-    """A few lines for the terminal; ``station report`` writes the full tables and figures."""
-    if not results:
-        return "  no results"
-    if kind == "reanalyse":
-        return summary(results.get("kind", ""), results.get(results.get("kind", ""), {}))
-    return "\n".join(filter(None, [_kind_summary(kind, results), _checks_summary(results)]))
-
-
-def _um(v: Any, unit: str = "um") -> str:
-    return "-" if v is None else f"{v:.3f} {unit}"
-
-
-def _checks_summary(results: dict[str, Any]) -> str:
-    """The checks that did not pass (a failed ``fail`` check failed the session)."""
-    bad = [c for c in results.get("checks", []) if not c.get("passed")]
-    lines = [
-        f"  check {c['name']} {'FAILED' if c['severity'] == 'fail' else 'warning'}: {c['message']}"
-        for c in bad
-    ]
-    return "\n".join(lines)
-
-
-def _kind_summary(kind: str, results: dict[str, Any]) -> str:
-    if kind == "validation":
-        width = results.get("groove_width_mm")
-        return (
-            f"  raw (rigid) error mean {_um(results['mean_um'])}, max {_um(results['max_um'])}; "
-            f"parallelogram mean {_um(results.get('parallelogram_mean_um'))}, "
-            f"max {_um(results.get('parallelogram_max_um'))}\n"
-            f"  scale {results['scale']:.6f}: groove width {_um(width, 'mm')} "
-            f"(u {_um(results.get('groove_width_u_mm'), 'mm')}); {results.get('n_positions')} positions"
-            + (" (partial)" if results.get("partial") else "")
-        )
-    if kind == "repeatability":
-        lines = [f"  RP (mm), {results['n_cycles']} cycles planned per test:"]
-        for test, e in results["tests"].items():
-            n = e.get("n_cycles")
-            count = f"N {n}" + (f" of {e.get('planned_cycles')}, partial" if e.get("partial") else "")
-            if "rp_mm" in e:
-                lo, hi = e["rp_ci95_mm"]
-                lines.append(f"    {test:>4}  RP {e['rp_mm']:.5f}  (95 % {lo:.5f}-{hi:.5f})  {count}")
-            else:
-                lines.append(f"    {test:>4}  {e.get('error')}  {count if n is not None else ''}".rstrip())
-        return "\n".join(lines)
-    if kind == "sweep":
-        return f"  {len(results['trials'])} trials; best: trial {results['best']}"
-    if kind == "calibration":
-        rel = results["relative_error_um"]
-
-        def um(v: Any) -> str:
-            return "-" if v is None else f"{v:.1f} um"
-
-        return (
-            f"  relative error (held-out configurations): before {um(rel.get('before'))},"
-            f" after {um(rel.get('after'))}, floor {um(rel.get('floor'))}\n"
-            f"  {results['identified_count']} parameters identified from {results['observations']} captures"
-            f" of {results['configurations']} configurations;"
-            f" condition number {results['condition_number']:.3g};"
-            f" not identifiable on this arm: {', '.join(results['unidentifiable'])}"
-        )
-    return json.dumps(results)[:500]

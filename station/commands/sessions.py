@@ -25,7 +25,7 @@ from station.record import (
     station_in_use,
 )
 from station.reporting import ReportError
-from station.resources import SessionSummary, dumps
+from station.resources import SessionSummary, dumps, report_document
 from station.session import open_record
 
 if TYPE_CHECKING:
@@ -122,11 +122,6 @@ def run_sessions(args: argparse.Namespace) -> int:
         )
     )
     return 0
-
-
-def report_document(row: SessionRow) -> dict[str, Any]:
-    """What ``station.reporting.write_report`` takes: the session object with identities and software."""
-    return {**session_json(row), "identities": row.identities, "software": row.software}
 
 
 def write_session_report(

@@ -37,13 +37,12 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Protocol
 
-from pydantic import BaseModel
+from pydantic import BaseModel, ValidationError
 
 from station._pydantic import problems as describe
 
 if TYPE_CHECKING:
     from station.compute import MeasureBackend
-    from station.plans.calibration import CalibrationCell
     from station.record import Record
     from station.vision import MeasureParams
 
@@ -194,7 +193,11 @@ class PlanContext:
     plans read stored sessions from it). ``jobs``: worker processes for offline plans when no
     ``compute`` backend is given. ``compute``: where offline plans measure (the local pool, a Dask
     cluster; see ``station.compute``). ``cancelled``: true once the session is being aborted, for
-    long computations to poll (a backend then cancels its tasks).
+    long computations to poll (a backend then cancels its tasks). ``cell``: the plan's own view of the
+    station, made by its optional ``cell_from_config`` from the station's configuration (live) or from
+    the one a stored session recorded (a re-analysis); ``None`` for plans without one or when the
+    configuration lacks what it needs. ``plan_of``: the registry's plan lookup (``station.kinds``), for
+    a plan that runs another kind's analysis (``reanalyse``).
     """
 
     measure_params: MeasureParams
@@ -203,9 +206,10 @@ class PlanContext:
     record: Record | None = None
     session_id: str | None = None
     jobs: int = 1
-    calibration: CalibrationCell | None = None
+    cell: Any = None
     compute: MeasureBackend | None = None
     cancelled: Callable[[], bool] = field(default=lambda: False)
+    plan_of: Callable[[str], Plan] | None = None
 
 
 @dataclass(frozen=True)
@@ -234,7 +238,8 @@ class Plan(Protocol):
 
     @property
     def needs(self) -> frozenset[str]:
-        """The devices it drives: "robot", "camera", "table"."""
+        """The devices it drives: "robot", "camera", "table", "distance_sensor" (``StationDevices``' names);
+        empty for an offline plan."""
 
     def steps(self, params: Any, ctx: PlanContext) -> Iterator[Step]: ...
 
@@ -246,31 +251,19 @@ class Plan(Protocol):
         """Where its sessions start (None: anywhere, the plan does not need the arm)."""
 
     # Optional (looked up with getattr): ``resume_from`` (what a resume reruns), ``check_progress`` (live
-    # gates), and ``analysis_context(config, ctx)``: the context its analysis needs beyond the reference
-    # pose and the camera's height, rebuilt from the configuration a stored session recorded (a
-    # re-analysis, ``reanalyse``, runs without the session's station).
+    # gates), ``source_session(params)`` (an offline plan's stored session) and
+    # ``cell_from_config(config, measure_params)``: the plan's view of the station (``PlanContext.cell``)
+    # from a configuration as JSON, the live station's or the one a stored session recorded.
 
 
-def get_plan(name: str) -> Plan:
-    """The plan called ``name``; PlanError listing the plans otherwise."""
-    from station.plans.calibration import CALIBRATION
-    from station.plans.offline import REANALYSE, SWEEP
-    from station.plans.repeatability import REPEATABILITY
-    from station.plans.validation import VALIDATION
-
-    plans: dict[str, Plan] = {p.name: p for p in (VALIDATION, REPEATABILITY, SWEEP, REANALYSE, CALIBRATION)}
-    if name not in plans:
-        raise PlanError(f"no plan named {name!r}; plans: {', '.join(sorted(plans))}")
-    return plans[name]
-
-
-PLAN_NAMES = ("validation", "repeatability", "sweep", "reanalyse", "calibration")
+def station_cell(plan: Plan, config: Mapping[str, Any] | None, measure_params: MeasureParams) -> Any:
+    """``PlanContext.cell`` for ``plan`` on the station ``config`` describes (None without one)."""
+    make = getattr(plan, "cell_from_config", None)
+    return None if make is None or config is None else make(config, measure_params)
 
 
 def parse_params(plan: Plan, values: Mapping[str, Any]) -> BaseModel:
     """Validate a plan's parameters; PlanError naming every bad field and what is allowed."""
-    from pydantic import ValidationError
-
     try:
         return plan.Params.model_validate(dict(values))
     except ValidationError as exc:
@@ -279,7 +272,6 @@ def parse_params(plan: Plan, values: Mapping[str, Any]) -> BaseModel:
 
 
 __all__ = [
-    "PLAN_NAMES",
     "Action",
     "Align",
     "AlignInput",
@@ -298,6 +290,6 @@ __all__ = [
     "SetSpeed",
     "Settle",
     "Step",
-    "get_plan",
     "parse_params",
+    "station_cell",
 ]

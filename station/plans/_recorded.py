@@ -6,15 +6,21 @@ stored session is measured again (``reanalyse``), its plan reads them from the c
 recorded (its ``config`` snapshot): a re-analysis computes what the session computed, whatever the station
 is configured with today (or without any station at all), and moves nothing.
 
-Only the kinematics is imported here: every plan, the runner and the re-analysis may use it.
+Only the plans' interfaces and the kinematics are imported here: every plan, the runner and the
+re-analysis may use it.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+from station.plans import PlanContext, PlanError
+
+if TYPE_CHECKING:
+    from station.record import Record
 
 HeightFunction = Callable[[Sequence[float]], float]
 
@@ -57,3 +63,10 @@ def camera_height_of(config: Mapping[str, Any] | None) -> HeightFunction | None:
 
 
 __all__ = ["HeightFunction", "camera_height_function", "camera_height_of", "reference_of", "robot_section"]
+
+
+def record_of(ctx: PlanContext) -> Record:
+    """The record an offline plan reads its stored session from; PlanError without one."""
+    if ctx.record is None:
+        raise PlanError("this plan reads a stored session: it needs the record")
+    return ctx.record

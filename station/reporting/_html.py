@@ -12,8 +12,9 @@ import html
 import json
 from collections.abc import Mapping, Sequence
 
-from station.reporting._model import Session, format_date
-from station.reporting._tables import Table
+from station.kinds import KINDS
+from station.reporting._session import Session, format_date
+from station.reporting._table import Table
 
 _CSS = """
 body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 60em; padding: 0 1em; color: #222; }
@@ -37,16 +38,13 @@ pre { background: #f6f6f6; padding: 0.6em; overflow-x: auto; font-size: 0.8em; }
 details summary { cursor: pointer; }
 """
 
-_TITLES = {
-    "validation": "Validation against the X-Y table",
-    "repeatability": "Pose repeatability",
-    "sweep": "Parameter study",
-    "calibration": "Kinematic calibration",
-    "reanalyse": "Re-analysis",
-}
-
 #: Tables shown collapsed (long, per-position detail).
 _COLLAPSED = ("positions",)
+
+
+def _title(kind: str) -> str:
+    entry = KINDS.get(kind)
+    return entry.title if entry is not None and entry.title else kind
 
 
 def _e(text: object) -> str:
@@ -95,9 +93,9 @@ def _figure(name: str, caption: str, svg: bytes) -> str:
 
 def render(s: Session, tables: Mapping[str, Table], figures: Sequence[tuple[str, str, bytes]]) -> str:
     """The page for session ``s``: ``tables`` by name, ``figures`` as (file stem, caption, SVG bytes)."""
-    heading = _TITLES.get(s.kind, s.kind)
-    if s.kind == "reanalyse" and s.results_kind is not None:
-        heading += f" ({_TITLES.get(s.results_kind, s.results_kind).lower()})"
+    heading = _title(s.kind)
+    if s.results_kind is not None and s.results_kind != s.kind:  # drawn as another kind's (a re-analysis)
+        heading += f" ({_title(s.results_kind).lower()})"
     date = format_date(s.created_at)
     version = s.software.get("version", s.software.get("station"))
     facts = [

@@ -91,7 +91,7 @@ def write_report(session: Mapping[str, Any], out_dir: Path) -> ReportFiles:
     """
     s = parse_session(session)
     tables = all_tables(s)
-    figures = results_figures(s.results)
+    figures = results_figures(s)
     out = Path(out_dir)
     try:
         out.mkdir(parents=True, exist_ok=True)

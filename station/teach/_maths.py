@@ -67,7 +67,7 @@ class TeachError(ValueError):
 def square_on(normal: npt.ArrayLike) -> FloatArray:
     """The smallest rotation taking the base's +z to ``normal`` (an artifact's upward normal): the camera
     square to it looks along ``-normal`` with ``square_on(normal) @ LOOK_DOWN`` (the calibration plan's
-    convention, ``station/plans/calibration.py``)."""
+    convention, ``station/kinds/calibration/plan.py``)."""
     n = np.asarray(normal, dtype=float)
     n = n / np.linalg.norm(n)
     z = np.array([0.0, 0.0, 1.0])

@@ -33,6 +33,7 @@ from station.vision._params import (
     MeasureParams,
     Mode,
     field_name,
+    field_names,
     parse_assignments,
 )
 from station.vision._result import EdgeFit, Measurement
@@ -84,6 +85,7 @@ __all__ = [
     "check_single_cross",
     "directional_responses",
     "field_name",
+    "field_names",
     "gauss_kernel_7x7",
     "image_bit_depth",
     "intensity_moment",

@@ -9,6 +9,7 @@ Names are matched case-insensitively by ``station measure --set NAME=VALUE``.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any, Literal
 
 import numpy as np
@@ -154,6 +155,13 @@ def field_name(name: str, *, option: str = "--set") -> str:
     if key not in fields:
         raise ValueError(f"{option} {name!r}: unknown parameter; known: {', '.join(sorted(fields))}")
     return fields[key]
+
+
+def field_names(values: Mapping[str, Any], *, option: str = "--set") -> dict[str, Any]:
+    """``values`` keyed by the parameter model's field names, matched case-insensitively (the one rule
+    for every place names are given: ``--set``, a session's ``set``, ``POST /measure``'s query); raises
+    ``ValueError`` naming ``option``, the unknown name and the known names."""
+    return {field_name(k, option=option): v for k, v in values.items()}
 
 
 def parse_assignments(assignments: list[str]) -> dict[str, str]:

@@ -17,7 +17,8 @@ from typing import Any
 import pytest
 
 from api import Access, ServiceSettings, StationService
-from station.plans import get_plan, parse_params
+from station.kinds import get_plan
+from station.plans import parse_params
 from station.record import Record
 from station.runner import RunnerState, SessionRunner
 from station.testing import FakeStation

@@ -14,7 +14,8 @@ import time
 import pytest
 
 from station.record import SessionLockError
-from station.worker import SessionHost, _pack_exception, _unpack_exception
+from station.worker import SessionHost
+from station.worker._transport import _pack_exception, _unpack_exception
 from tests.api.conftest import Served, wait_final, wait_state
 
 LONG = {"kind": "repeatability", "params": {"cycles": 5000, "joints": [1], "warmup_cycles": 0}}

@@ -173,8 +173,8 @@ def test_each_observations_residual_is_kept_and_agrees_with_the_summaries(fitted
 
 def test_the_report_draws_each_observations_residual(fitted):
     """The calibration report's histograms: one step histogram per data set, holding every observation."""
-    from station.reporting._figures import calibration_histogram_figure
-    from station.reporting._model import CalibrationResults
+    from station.kinds.calibration.report_figures import calibration_histogram_figure
+    from station.kinds.calibration.results import CalibrationResults
 
     result = fitted.result
     doc = result.model_dump(mode="json")
@@ -257,8 +257,8 @@ def test_a_robust_loss_keeps_a_few_mismeasured_captures_from_pulling_the_fit(fit
     after = np.asarray(robust.residuals["after"].xy_um)
     assert np.sort(after)[-10:].min() > 100.0  # each outlier keeps its own residual, not spread out
     # the report says how the fit weighed them
-    from station.reporting._model import CalibrationResults
-    from station.reporting._tables import calibration_residuals_table
+    from station.kinds.calibration.report_tables import calibration_residuals_table
+    from station.kinds.calibration.results import CalibrationResults
 
     results = CalibrationResults.model_validate(
         {
@@ -286,6 +286,6 @@ def test_the_calibration_plan_offers_exactly_the_fits_losses():
     import typing
 
     from station.calibration import LOSSES
-    from station.plans.calibration import CalibrationParams
+    from station.kinds.calibration.params import CalibrationParams
 
     assert typing.get_args(CalibrationParams.model_fields["loss"].annotation) == LOSSES

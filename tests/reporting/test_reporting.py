@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from station.reporting import ReportError, ReportFiles, text_tables, write_report
-from station.reporting._figures import magnification, nice_floor
+from station.reporting._figure import magnification, nice_floor
 from tests.reporting.reporting_sessions import session
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"

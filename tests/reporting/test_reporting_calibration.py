@@ -20,10 +20,14 @@ import pytest
 from matplotlib.figure import Figure
 
 from station.cli import main
+from station.kinds.calibration.report_figures import (
+    calibration_parameters_figure,
+    calibration_residuals_figure,
+)
+from station.kinds.calibration.results import CalibrationResults
 from station.record import Record
 from station.reporting import ReportError, ReportFiles, text_tables, write_report
-from station.reporting._figures import calibration_parameters_figure, calibration_residuals_figure
-from station.reporting._model import CalibrationResults, parse_session
+from station.reporting._model import parse_session
 from tests.reporting.test_reporting import SVG_NS, check_files, embedded_svgs, not_blank
 
 FIXTURE = Path(__file__).parents[1] / "data" / "calibration_session.json"

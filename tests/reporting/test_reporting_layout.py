@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from station.reporting._figures import repeatability_figure
-from station.reporting._model import RepeatabilityTest
+from station.kinds.repeatability.report import repeatability_figure
+from station.kinds.repeatability.results import RepeatabilityTest
 
 
 def _test(joint: int, rng: np.random.Generator) -> RepeatabilityTest:

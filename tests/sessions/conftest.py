@@ -57,7 +57,8 @@ class EventLog:
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
     """A data directory with one validation session (on the in-process fakes), closed."""
-    from station.plans import get_plan, parse_params
+    from station.kinds import get_plan
+    from station.plans import parse_params
     from station.runner import RunnerState, SessionRunner
 
     data = tmp_path_factory.mktemp("recorded") / "data"

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from station.plans._calibration_gates import calibration_checks
+from station.kinds.calibration.gates import calibration_checks
 
 
 def results(before: float | None, after: float | None, floor: float | None, **more: Any) -> dict[str, Any]:

@@ -15,6 +15,8 @@ from pydantic import BaseModel, ValidationError
 from drivers.crs_a465._safety import MotionGuard, SafetyLimits
 from sim.station import sim_safety, taught_artifacts_mm, taught_normals, taught_turns_deg
 from sim.world import World
+from station.kinds.calibration.params import CalibrationCell, CalibrationParams
+from station.kinds.calibration.plan import CALIBRATION, LIMIT_MARGIN_DEG, quantised, unwrap_near
 from station.kinematics import Kinematics
 from station.plans import (
     Align,
@@ -28,14 +30,6 @@ from station.plans import (
     PlanError,
     ReferencePose,
     Step,
-)
-from station.plans.calibration import (
-    CALIBRATION,
-    LIMIT_MARGIN_DEG,
-    CalibrationCell,
-    CalibrationParams,
-    quantised,
-    unwrap_near,
 )
 from station.record import Record
 from station.runner import RunnerState, SessionRunner
@@ -66,7 +60,7 @@ def cell(world: World) -> CalibrationCell:
 
 
 def context(cell: CalibrationCell | None) -> PlanContext:
-    return PlanContext(measure_params=MeasureParams(), reference_joints_deg=REFERENCE, calibration=cell)
+    return PlanContext(measure_params=MeasureParams(), reference_joints_deg=REFERENCE, cell=cell)
 
 
 def test_each_configuration_looks_square_at_its_artifact_from_inside_the_limits(

@@ -24,7 +24,7 @@ import pytest
 
 from sim.calibration_truth import truth_report
 from station.calibration import CalibrationResult, load_kinematics
-from station.plans.calibration import calibration_cell_from_config
+from station.kinds.calibration.params import calibration_cell_from_config
 from station.runner import stored_captures
 from station.session import SessionOutcome, open_record, run_session
 from station.vision import MeasureParams
@@ -158,8 +158,8 @@ def test_the_sessions_report_shows_each_observations_residual(
     session: tuple[Path, SessionOutcome], tmp_path: Path
 ) -> None:
     """The session's results list every capture's residual; its report draws them as histograms."""
-    from station.commands.sessions import report_document
     from station.reporting import write_report
+    from station.resources import report_document
 
     data, outcome = session
     with open_record(data) as record:

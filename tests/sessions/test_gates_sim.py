@@ -28,9 +28,11 @@ from sim.station import SIM_TABLE_ORIGIN_IN, build_sim_station
 from sim.world import INCH_MM, WorldSpec
 from station import scale_calibration as scal
 from station.config import StationDevices
-from station.plans import get_plan, parse_params
-from station.plans._validation_gates import NOT_SEEN, SETUP_MOVED
-from station.plans.calibration import CALIBRATION, CalibrationParams, calibration_cell_from_config
+from station.kinds import get_plan
+from station.kinds.calibration.params import CalibrationParams, calibration_cell_from_config
+from station.kinds.calibration.plan import CALIBRATION
+from station.kinds.validation.gates import NOT_SEEN, SETUP_MOVED
+from station.plans import parse_params
 from station.prompts import Prompt
 from station.record import Record
 from station.runner import RunnerState, SessionRunner

@@ -6,11 +6,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from station.commands.run import summary
-from station.commands.sessions import report_document
-from station.plans import get_plan, parse_params
+from station.kinds import get_plan, summary
+from station.plans import parse_params
 from station.record import Record
 from station.reporting import text_tables, write_report
+from station.resources import report_document
 from station.runner import RunnerState, SessionRunner
 from station.testing import FakeStation
 from tests.sessions.conftest import results_of, sid_of

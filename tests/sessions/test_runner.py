@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from station.devices import ControllerError, DeviceTimeoutError, OperatorCancelledError
-from station.plans import get_plan, parse_params
+from station.kinds import get_plan
+from station.plans import parse_params
 from station.record import Record, SessionLockError, station_lock
 from station.runner import ACTIVE_STATES, RunnerState, SessionRunner, reconcile
 from station.testing import FakeRobot, FakeStation

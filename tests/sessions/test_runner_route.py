@@ -13,9 +13,11 @@ from pydantic import BaseModel
 from drivers.crs_a465 import MotionGuard, SafetyLimits
 from sim.station import sim_safety, taught_artifacts_mm, taught_normals, taught_turns_deg
 from sim.world import World
+from station.kinds import get_plan
+from station.kinds.calibration.params import CalibrationCell, CalibrationParams
+from station.kinds.calibration.plan import CALIBRATION
 from station.kinematics import Kinematics
-from station.plans import CaptureResult, MoveJoints, PlanContext, ReferencePose, Step, get_plan, parse_params
-from station.plans.calibration import CALIBRATION, CalibrationCell, CalibrationParams
+from station.plans import CaptureResult, MoveJoints, PlanContext, ReferencePose, Step, parse_params
 from station.record import Record
 from station.runner import RunnerState, SessionRunner
 from station.testing import FakeRobot, FakeStation
@@ -172,7 +174,7 @@ def test_a_resumed_calibration_travels_from_the_reference_to_where_its_next_conf
         sensor_mount=np.eye(4),
         reference_joints_deg=REF,
     )
-    ctx = PlanContext(measure_params=MeasureParams(), reference_joints_deg=REF, calibration=cell)
+    ctx = PlanContext(measure_params=MeasureParams(), reference_joints_deg=REF, cell=cell)
     params = CalibrationParams(placements=[1, 2], turns_deg=[-20.0, 70.0], solutions=2)
     steps = list(CALIBRATION.steps(params, ctx))
     configs = CALIBRATION.configurations(params, cell)

@@ -11,7 +11,8 @@ from typing import Any
 import pytest
 
 from station.devices import DeviceConnectionError, DeviceProtocolError
-from station.plans import get_plan, parse_params
+from station.kinds import get_plan
+from station.plans import parse_params
 from station.record import Record
 from station.runner import RunnerState, SessionRunner
 from station.testing import FakeDistanceSensor, FakeStation

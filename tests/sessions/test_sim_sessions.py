@@ -18,8 +18,9 @@ from sim.station import SimStation, build_sim_station
 from sim.world import WorldSpec
 from station.config import StationDevices
 from station.devices import Frame
+from station.kinds import get_plan
 from station.metrology import fit_rigid, repeatability
-from station.plans import get_plan, parse_params
+from station.plans import parse_params
 from station.record import CaptureRow, EventRow, Record
 from station.runner import RunnerState, SessionRunner
 from tests.sessions.conftest import results_of, sid_of
@@ -147,7 +148,7 @@ def test_repeatability_agrees_with_the_worlds_truth(record: Record) -> None:
 
 def test_signs_keep_the_camera_away_from_the_artifact() -> None:
     """Joints 2 and 3 move negative in the sim world: positive would bring the camera toward the artifact."""
-    from station.plans.repeatability import RepeatabilityParams, choose_signs
+    from station.kinds.repeatability.plan import RepeatabilityParams, choose_signs
     from station.runner import camera_height_function
 
     devices = sim_devices()

@@ -6,7 +6,8 @@ from __future__ import annotations
 import threading
 from pathlib import Path
 
-from station.plans import get_plan, parse_params
+from station.kinds import get_plan
+from station.plans import parse_params
 from station.record import EventRow, Record, SessionLockError, lock_holder
 from station.runner import RunnerState, SessionRunner
 from station.testing import FakeStation

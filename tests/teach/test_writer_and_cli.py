@@ -12,8 +12,8 @@ import pytest
 from sim.world import REFERENCE_JOINTS_DEG
 from station.cli import main
 from station.config import ConfigurationError, load_config
-from station.plans.calibration import LOOK_DOWN as PLAN_LOOK_DOWN
-from station.plans.calibration import square_on as plan_square_on
+from station.kinds.calibration.plan import LOOK_DOWN as PLAN_LOOK_DOWN
+from station.kinds.calibration.plan import square_on as plan_square_on
 from station.teach import LOOK_DOWN, fit_plane, set_artifact, set_reference, square_on, update_config
 
 CONFIG = """\

@@ -1,16 +1,8 @@
-"""Plans that need no hardware: a stored session measured again.
-
-* ``sweep``: a stored validation session re-measured over a parameter grid (default: the seed's Table 1
-  trials) with the ``station sweep`` core, one step per trial.
-* ``reanalyse``: any stored session measured again with other parameters or software, on the
-  session's compute backend (``station.compute``: the local pool by default, or a Dask cluster), then
-  analysed as its own kind. With the same parameters and software it reproduces the stored results
-  bit for bit, on any backend.
-"""
+"""The ``sweep`` kind's plan: a stored validation session re-measured over a parameter grid (default: the
+seed's Table 1 trials) with the ``station sweep`` core, one step per trial."""
 
 from __future__ import annotations
 
-import contextlib
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any, Literal
@@ -18,30 +10,12 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from station.compute import LocalBackend
 from station.imagesets import ImageSet
 from station.plans import CaptureResult, Compute, PlanContext, PlanError, ReferencePose, Step
-from station.plans._recorded import camera_height_of, reference_of
+from station.plans._recorded import record_of
 from station.sweep import grid, run_sweep, seed_trials
 from station.validation import CALIBRATIONS
-from station.vision import MeasureParams, field_name
-
-CHUNK = 64  # captures per reanalysis step: the runner's pause/stop granularity
-
-
-def _record(ctx: PlanContext) -> Any:
-    if ctx.record is None:
-        raise PlanError("this plan reads a stored session: it needs the record")
-    return ctx.record
-
-
-def measure_stored(paths: Sequence[Path], params: MeasureParams, ctx: PlanContext) -> list[dict[str, Any]]:
-    """Measure stored image files on the session's backend (else a local pool of ``ctx.jobs``);
-    ``station measure --json`` objects, in order."""
-    if ctx.compute is not None:
-        return [r.to_json() for r in ctx.compute.measure(paths, params, cancelled=ctx.cancelled)]
-    with contextlib.closing(LocalBackend(ctx.jobs)) as local:
-        return [r.to_json() for r in local.measure(paths, params, cancelled=ctx.cancelled)]
+from station.vision import field_name
 
 
 class SweepParams(BaseModel):
@@ -81,7 +55,7 @@ class SweepPlan:
         return params.session
 
     def image_set(self, params: SweepParams, ctx: PlanContext) -> ImageSet:
-        record = _record(ctx)
+        record = record_of(ctx)
         source = record.get_session(params.session)
         if source.kind != "validation":
             raise PlanError(
@@ -140,7 +114,7 @@ class SweepPlan:
     def analyse(
         self, params: SweepParams, ctx: PlanContext, captures: Sequence[CaptureResult]
     ) -> dict[str, Any]:
-        record = _record(ctx)
+        record = record_of(ctx)
         assert ctx.session_id is not None
         trials = [s.data for s in record.steps(ctx.session_id) if s.state == "done" and "number" in s.data]
         trials.sort(key=lambda t: t["number"])
@@ -151,90 +125,4 @@ class SweepPlan:
         return {"trials": trials, "best": best, "source_session": record.get_session(params.session).id}
 
 
-class ReanalyseParams(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    session: str = Field(min_length=4, description="id (or unique prefix) of any stored session")
-
-
-class ReanalysePlan:
-    name = "reanalyse"
-    Params = ReanalyseParams
-    needs: frozenset[str] = frozenset()
-
-    def source_session(self, params: ReanalyseParams) -> str:
-        return params.session
-
-    def steps(self, params: ReanalyseParams, ctx: PlanContext) -> Iterator[Step]:
-        record = _record(ctx)
-        source = record.get_session(params.session)
-        caps = record.captures(source.id)
-        if not caps:
-            raise PlanError(f"session {source.id} has no captures to measure again")
-        for k in range(0, len(caps), CHUNK):
-            ids = [c.id for c in caps[k : k + CHUNK]]
-
-            def run(c: PlanContext, ids: list[int] = ids, src: str = source.id) -> dict[str, Any]:
-                rec = _record(c)
-                assert c.session_id is not None
-                by_id = {cap.id: cap for cap in rec.captures(src)}
-                chunk = [by_id[i] for i in ids]
-                paths = [Path(rec.data_dir) / cap.path for cap in chunk]
-                results = measure_stored(paths, c.measure_params, c)
-                params_doc = c.measure_params.model_dump(mode="json")
-                software = _software()
-                ok = 0
-                for cap, result in zip(chunk, results, strict=True):
-                    result["file"] = cap.path
-                    rec.add_measurement(c.session_id, cap.id, result, params=params_doc, software=software)
-                    ok += bool(result.get("ok"))
-                return {"measured": len(chunk), "ok": ok}
-
-            yield Step(k // CHUNK, f"captures {k + 1}-{k + len(ids)}", (Compute(run),), {"chunk": k // CHUNK})
-
-    def resume_prelude(self, params: ReanalyseParams, ctx: PlanContext, next_step: Step) -> list[Step]:
-        return []
-
-    def reference_pose(self, params: ReanalyseParams, ctx: PlanContext) -> ReferencePose | None:
-        return None  # no device
-
-    def analyse(
-        self, params: ReanalyseParams, ctx: PlanContext, captures: Sequence[CaptureResult]
-    ) -> dict[str, Any]:
-        from station.plans import get_plan, parse_params
-
-        record = _record(ctx)
-        source = record.get_session(params.session)
-        plan = get_plan(source.kind)
-        source_params = parse_params(plan, source.params.get("plan", {}))
-        # the source session's station as it recorded it (its reference pose, the camera's height that
-        # chose each excursion's sign, a calibration's cell), never the station of today: a re-analysis
-        # moves nothing and computes what the session computed
-        sub = PlanContext(
-            measure_params=ctx.measure_params,
-            reference_joints_deg=reference_of(source.config),
-            camera_height_mm=camera_height_of(source.config),
-            record=record,
-            session_id=source.id,
-            jobs=ctx.jobs,
-            compute=ctx.compute,
-            cancelled=ctx.cancelled,
-        )
-        recorded = getattr(plan, "analysis_context", None)
-        if recorded is not None:
-            sub = recorded(source.config, sub)
-        inner = plan.analyse(source_params, sub, captures)
-        out: dict[str, Any] = {"source_session": source.id, "kind": source.kind, source.kind: inner}
-        if "checks" in inner:
-            out["checks"] = inner["checks"]  # the source's gates judge the re-analysis too
-        return out
-
-
-def _software() -> str:
-    from station import __version__
-
-    return f"station {__version__}"
-
-
 SWEEP = SweepPlan()
-REANALYSE = ReanalysePlan()

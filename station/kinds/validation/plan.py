@@ -19,6 +19,17 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from station.kinds.validation.gates import (
+    GROOVE_BAND_MM,
+    RIGID_LIMITS_UM,
+    groove_check,
+    live_resume,
+    live_table_moves,
+    positions_check,
+    resume_check,
+    rigid_checks,
+    table_moves_check,
+)
 from station.metrology import fit_affine, fit_rigid, scale_uncertainty
 from station.patterns import STEP_UM, STEPS_PER_SIDE, validation_pattern_um
 from station.plans import (
@@ -33,17 +44,6 @@ from station.plans import (
 )
 from station.plans._analysis import failures, group_mean, measured, series_positions_mm
 from station.plans._gates import checks_json
-from station.plans._validation_gates import (
-    GROOVE_BAND_MM,
-    RIGID_LIMITS_UM,
-    groove_check,
-    live_resume,
-    live_table_moves,
-    positions_check,
-    resume_check,
-    rigid_checks,
-    table_moves_check,
-)
 
 
 class ValidationParams(BaseModel):

@@ -1,4 +1,4 @@
-"""Calibration sessions: from a session's captures to the identified arm.
+"""The ``calibration`` kind's analysis: from a session's captures to the identified arm.
 
 Used by the ``calibration`` plan's analysis (when the session ends) and by ``station calibrate SESSION``
 (again, on any stored calibration session: capture and optimisation are separate, the raw images and
@@ -34,12 +34,11 @@ from station.calibration import (
     crossing_positions,
     identify,
 )
-from station.camera_moves import move_camera
 from station.kinematics import Kinematics
 from station.plans import CaptureResult, PlanError
 
 if TYPE_CHECKING:
-    from station.plans.calibration import CalibrationCell, CalibrationParams
+    from station.kinds.calibration.params import CalibrationCell, CalibrationParams
 
 #: Capture kinds of a calibration session the identification uses ("align" frames are not).
 FIT_KINDS = {"pose": "pose", "inview": "inview", "return": "inview"}
@@ -151,10 +150,10 @@ def floor_estimate_um(
 
 
 def analyse_calibration(
-    params: CalibrationParams, cell: CalibrationCell, captures: Sequence[CaptureResult]
+    params: CalibrationParams, cell: CalibrationCell, captures: Sequence[CaptureResult], *, planned: int
 ) -> dict[str, Any]:
-    """The calibration session's results object (see the module notes)."""
-    from station.plans.calibration import CALIBRATION
+    """The calibration session's results object (see the module notes); ``planned``: the configurations
+    the session's plan visits."""
 
     observations, kinds, left_out = observations_from(captures)
     if not observations:
@@ -172,7 +171,6 @@ def analyse_calibration(
         raise PlanError(f"the identification failed: {exc}") from exc
     cv = result.cross_validation
     rel = cv.relative_error_um
-    planned = len(CALIBRATION.configurations(params, cell))
     return {
         "relative_error_um": {
             "before": rel.get("before"),
@@ -211,16 +209,5 @@ __all__ = [
     "calibration_setup",
     "floor_estimate_um",
     "holdout_configurations",
-    "move_camera",
-    "observations_from",
-]
-
-
-__all__ = [
-    "analyse_calibration",
-    "calibration_setup",
-    "floor_estimate_um",
-    "holdout_configurations",
-    "move_camera",
     "observations_from",
 ]
