@@ -105,6 +105,25 @@ def rot_z(angle_rad: float) -> FloatArray:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
+#: The camera looking straight down (its z along the base's -z), image x along the base's -x: the sim
+#: world's reference orientation and the calibration plan's; a turn about the optical axis goes on top.
+LOOK_DOWN = np.diag([-1.0, 1.0, -1.0])
+
+
+def square_on(normal: npt.ArrayLike) -> FloatArray:
+    """The smallest rotation taking the base's +z to ``normal`` (an artifact's upward normal): the camera
+    square to that artifact looks along ``-normal`` with ``square_on(normal) @ LOOK_DOWN``."""
+    n = np.asarray(normal, dtype=float)
+    n = n / np.linalg.norm(n)
+    z = np.array([0.0, 0.0, 1.0])
+    v = np.cross(z, n)
+    s, c = float(np.linalg.norm(v)), float(z @ n)
+    if s < 1e-12:
+        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
+    K = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    return np.asarray(np.eye(3) + K + K @ K * ((1.0 - c) / (s * s)), dtype=float)
+
+
 def transform(rotation: npt.ArrayLike, translation_mm: npt.ArrayLike) -> FloatArray:
     """4x4 homogeneous transform from a 3x3 rotation and a translation (mm)."""
     T = np.eye(4)
@@ -448,6 +467,7 @@ class Kinematics:
 __all__ = [
     "A465_DH",
     "A465_JOINT_LIMITS_DEG",
+    "LOOK_DOWN",
     "DHRow",
     "Kinematics",
     "KinematicsError",
@@ -456,6 +476,7 @@ __all__ = [
     "rot_x",
     "rot_y",
     "rot_z",
+    "square_on",
     "transform",
     "world_row",
 ]

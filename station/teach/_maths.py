@@ -35,7 +35,7 @@ import numpy as np
 import numpy.typing as npt
 
 from station.camera_model import CameraIntrinsics
-from station.kinematics import Kinematics, rot_z, transform
+from station.kinematics import LOOK_DOWN, Kinematics, rot_z, square_on, transform
 
 __all__ = [
     "LOOK_DOWN",
@@ -55,28 +55,10 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 
-LOOK_DOWN = np.diag([-1.0, 1.0, -1.0])
-"""The camera looking straight down with the image's x along the base's -x (the calibration plan's)."""
-
 
 class TeachError(ValueError):
     """The readings cannot give the value asked for (too few, degenerate, out of reach); the message says
     what to do."""
-
-
-def square_on(normal: npt.ArrayLike) -> FloatArray:
-    """The smallest rotation taking the base's +z to ``normal`` (an artifact's upward normal): the camera
-    square to it looks along ``-normal`` with ``square_on(normal) @ LOOK_DOWN`` (the calibration plan's
-    convention, ``station/kinds/calibration/plan.py``)."""
-    n = np.asarray(normal, dtype=float)
-    n = n / np.linalg.norm(n)
-    z = np.array([0.0, 0.0, 1.0])
-    v = np.cross(z, n)
-    s, c = float(np.linalg.norm(v)), float(z @ n)
-    if s < 1e-12:
-        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
-    K = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-    return np.asarray(np.eye(3) + K + K @ K * ((1.0 - c) / (s * s)), dtype=float)
 
 
 @dataclass(frozen=True)

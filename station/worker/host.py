@@ -354,10 +354,12 @@ class SessionHost:
         return self._broker().cancel(prompt_id, reason=reason, by=by)
 
     def _settle(self) -> None:
-        """Wait for an ended session's thread to finish: it publishes its final state before it lets go
-        of the station lock, and a read of a device right then would find the station busy."""
+        """Wait for an ended (or aborting) session's thread to finish: it publishes its final state before
+        it lets go of the devices and the station lock, and a read of a device right then would find the
+        station busy (an aborting session's record may already say ``aborted``)."""
         thread, runner = self._thread, self._runner
-        if thread is not None and runner is not None and runner.state in FINAL_STATES:
+        ending = (*FINAL_STATES, RunnerState.ABORTING)
+        if thread is not None and runner is not None and runner.state in ending:
             thread.join(30)
 
     def rpc_grab(self) -> Any:

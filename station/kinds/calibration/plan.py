@@ -38,7 +38,7 @@ from station.arm_route import quantised, split_move, travel
 from station.kinds.calibration.analysis import analyse_calibration
 from station.kinds.calibration.gates import calibration_checks
 from station.kinds.calibration.params import CalibrationCell, CalibrationParams, calibration_cell_from_config
-from station.kinematics import KinematicsError, rot_z, transform
+from station.kinematics import LOOK_DOWN, KinematicsError, rot_z, square_on, transform
 from station.plans import (
     Align,
     AlignInput,
@@ -67,10 +67,6 @@ LIMIT_MARGIN_DEG = 2.5
 MAX_CORRECTION_MM = 1.9
 """The longest single focus/re-centring move (within the runner's 2 mm bound); longer ones go in parts."""
 
-#: The camera looking straight down (its z along the base's -z), image x along the base's -x: the sim
-#: world's reference orientation; a turn about the optical axis is applied on top.
-LOOK_DOWN = np.diag([-1.0, 1.0, -1.0])
-
 
 @dataclass(frozen=True)
 class Configuration:
@@ -82,20 +78,6 @@ class Configuration:
     solution: int
     joints_deg: tuple[float, ...]
     camera_pose: FloatArray
-
-
-def square_on(normal: npt.ArrayLike) -> FloatArray:
-    """The smallest rotation taking the base's +z to ``normal`` (an artifact's upward normal): the camera
-    square to that artifact looks along ``-normal`` with ``square_on(normal) @ LOOK_DOWN``."""
-    n = np.asarray(normal, dtype=float)
-    n = n / np.linalg.norm(n)
-    z = np.array([0.0, 0.0, 1.0])
-    v = np.cross(z, n)
-    s, c = float(np.linalg.norm(v)), float(z @ n)
-    if s < 1e-12:
-        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
-    K = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-    return np.asarray(np.eye(3) + K + K @ K * ((1.0 - c) / (s * s)), dtype=float)
 
 
 def unwrap_near(q: npt.ArrayLike, seed: npt.ArrayLike, limits: FloatArray) -> tuple[float, ...]:
