@@ -192,7 +192,10 @@ class DaskBackend:
         given = as_items(items)
         names = [item_name(item) for item in given]
         work: list[Item] = [item if isinstance(item, ImageBytes) else os.path.abspath(item) for item in given]
-        for index, result in self._results(work, params, limits, cancelled or never):
+        check = cancelled or never
+        for index, result in self._results(work, params, limits, check):
+            if check():  # also between results a batch already brought: a cancel never waits for a batch
+                raise ComputeCancelledError("cancelled: the cluster's tasks for this run were cancelled")
             name, raw = display_name(names[index])
             if result.file != name or result.file_bytes_b64 != raw:  # the name as the caller gave it
                 result = FileResult(name, result.measurement, result.error, result.code, raw)
@@ -321,9 +324,12 @@ class DaskBackend:
         return out
 
     def _gather(self, client: Any, future: Any, check: Cancelled) -> list[FileResult]:
-        """The batch's results, polling ``check`` and the scheduler's connection while waiting."""
+        """The batch's results, polling ``check`` before and while waiting, and the scheduler's connection
+        while waiting (a cancel asked for while results come faster than the poll still stops the run)."""
         from distributed import KilledWorker
 
+        if check():
+            raise ComputeCancelledError("cancelled: the cluster's tasks for this run were cancelled")
         done = threading.Event()
         future.add_done_callback(lambda _: done.set())
         while not done.wait(POLL_S):
