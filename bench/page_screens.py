@@ -25,18 +25,9 @@ from typing import Any, cast
 
 import httpx
 
+from tests.browser import ARGS, CHROMIUM
+
 TOKEN = "bench-page-token-0123456789abcdef"
-CHROMIUM = "/usr/bin/chromium"
-ARGS = [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--disable-dev-shm-usage",
-]
 VIEWPORTS = {"1280": {"width": 1280, "height": 720}, "800": {"width": 800, "height": 900}}
 PATTERN = [[0.0, 0.0], [254.0, 0.0], [254.0, 254.0], [0.0, 254.0]]
 # four joint solutions: with two, the calibrated model misses by more than the nominal one and the

@@ -11,7 +11,6 @@ Also: the page without a login says how to log in.
 from __future__ import annotations
 
 import io
-import shutil
 import threading
 import zipfile
 from collections.abc import Iterator
@@ -24,19 +23,8 @@ import pytest
 from station.record import Record
 from station.session import run_session
 from tests.api.conftest import TOKEN, ServeFactory
-from tests.conftest import needs_system
+from tests.browser import chromium
 
-CHROMIUM = "/usr/bin/chromium"
-ARGS = [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--disable-dev-shm-usage",
-]
 ATTACK = """<!doctype html><title>pending</title><script>
 fetch("/payload.zip").then(r => r.arrayBuffer()).then(zip =>
   fetch("%(station)s/api/v1/sessions/import", {
@@ -49,18 +37,8 @@ fetch("/payload.zip").then(r => r.arrayBuffer()).then(zip =>
 
 @pytest.fixture
 def browser() -> Iterator[Any]:
-    try:
-        from playwright.sync_api import sync_playwright
-    except ImportError:
-        needs_system("playwright (pip)", False, "pip install playwright")
-        raise
-    needs_system("chromium", shutil.which(CHROMIUM) is not None, "apt-get install chromium")
-    with sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
-        try:
-            yield b
-        finally:
-            b.close()
+    with chromium() as b:
+        yield b
 
 
 def exported_session(tmp_path: Path) -> tuple[str, bytes]:

@@ -8,7 +8,6 @@ response of 400 or more. Waits are on the page's own state (``wait_for_function`
 from __future__ import annotations
 
 import json
-import shutil
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
@@ -17,19 +16,8 @@ import httpx
 import pytest
 
 from tests.api.conftest import AUTH, TOKEN
-from tests.conftest import needs_system
+from tests.browser import chromium
 
-CHROMIUM = "/usr/bin/chromium"
-ARGS = [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--disable-dev-shm-usage",
-]
 WIDE = {"width": 1280, "height": 720}
 NARROW = {"width": 800, "height": 900}
 FINAL = ("succeeded", "failed", "aborted", "stopped", "interrupted")
@@ -40,18 +28,8 @@ PATTERN = [[0.0, 0.0], [254.0, 0.0], [254.0, 254.0], [0.0, 254.0]]
 def browser() -> Iterator[Any]:
     """Chromium for one test (Playwright's sync API runs one instance at a time per process, and
     ``tests/api/test_browser.py`` has its own)."""
-    try:
-        from playwright.sync_api import sync_playwright
-    except ImportError:
-        needs_system("playwright (pip)", False, "pip install playwright")
-        raise
-    needs_system("chromium", shutil.which(CHROMIUM) is not None, "apt-get install chromium")
-    with sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
-        try:
-            yield b
-        finally:
-            b.close()
+    with chromium() as b:
+        yield b
 
 
 @dataclass
