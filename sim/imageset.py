@@ -145,7 +145,9 @@ def image_name(index: int) -> str:
     return f"img_{index:03d}.png"
 
 
-def _prepare(out_dir: Path, force: bool) -> None:
+def prepare_folder(out_dir: Path, force: bool) -> None:
+    """An empty output folder for a set (ImageSetError when it is a file, or not empty without
+    ``force``; with it, a previous set's images, truth and displacements are removed first)."""
     if out_dir.exists() and not out_dir.is_dir():
         raise ImageSetError(f"{out_dir} exists and is not a folder; choose another output path")
     if out_dir.is_dir() and any(out_dir.iterdir()):
@@ -158,7 +160,8 @@ def _prepare(out_dir: Path, force: bool) -> None:
     out_dir.mkdir(parents=True, exist_ok=True)
 
 
-def _write_png(path: Path, image: npt.NDArray[np.uint8]) -> None:
+def write_png(path: Path, image: npt.NDArray[np.uint8]) -> None:
+    """``image`` to ``path`` (ImageSetError when it cannot be written)."""
     if not cv2.imwrite(str(path), image):
         raise ImageSetError(f"could not write {path}")
 
@@ -223,7 +226,7 @@ def render_validation_set(
     """
     out = Path(out_dir)
     p = _resolve(preset)
-    _prepare(out, force)
+    prepare_folder(out, force)
     pose0 = default_base_pose(seed, camera) if base_pose is None else base_pose
     rng = np.random.default_rng(seed)
     to_artifact = table.matrix()
@@ -239,7 +242,7 @@ def render_validation_set(
             rng=rng,
         )
         name = image_name(k)
-        _write_png(out / name, image)
+        write_png(out / name, image)
         entries.append({"file": name, **truth.to_dict(), "artifact_displacement_um": [du_um, dv_um]})
         rows.append((name, dx_um, dy_um))
     with (out / DISPLACEMENTS_FILE).open("w", newline="", encoding="utf-8") as fh:
@@ -344,12 +347,12 @@ def render_random_set(
         artifact=artifact,
         camera=camera,
     )
-    _prepare(out, force)
+    prepare_folder(out, force)
     rng = np.random.default_rng(seed)
     entries: list[dict[str, Any]] = []
     for k, pose in enumerate(poses):
         image, truth = render(pose, preset=p, artifact=artifact, camera=camera, rng=rng)
-        _write_png(out / image_name(k), image)
+        write_png(out / image_name(k), image)
         entries.append({"file": image_name(k), **truth.to_dict()})
     header = {
         "kind": "random",

@@ -31,12 +31,18 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
 
 from sim._render_camera import CameraSpec, Pose, pose_for_center_px
 from sim._ruler_surface import RulerSurface, get_surface
-from sim.imageset import DISPLACEMENTS_HEADER, ImageSetError, TableSpec, image_name
+from sim.imageset import (
+    DISPLACEMENTS_HEADER,
+    ImageSetError,
+    TableSpec,
+    image_name,
+    prepare_folder,
+    write_png,
+)
 from sim.presets import NoisePreset, get_preset
 from sim.ruler import RulerTruth, render_ruler, ruler_homography
 from station.imagesets import DISPLACEMENTS, TRUTH
@@ -145,24 +151,6 @@ def random_ruler_views(
     raise ValueError("no view fits the envelope in this frame; use a larger camera or a smaller envelope")
 
 
-def _prepare(out_dir: Path, force: bool) -> None:
-    if out_dir.exists() and not out_dir.is_dir():
-        raise ImageSetError(f"{out_dir} exists and is not a folder; choose another output path")
-    if out_dir.is_dir() and any(out_dir.iterdir()):
-        if not force:
-            raise ImageSetError(
-                f"{out_dir} is not empty; choose an empty folder, or overwrite with force=True (--force)"
-            )
-        for old in [*out_dir.glob("img_*.png"), out_dir / TRUTH, out_dir / DISPLACEMENTS]:
-            old.unlink(missing_ok=True)
-    out_dir.mkdir(parents=True, exist_ok=True)
-
-
-def _write(out_dir: Path, name: str, image: np.ndarray) -> None:
-    if not cv2.imwrite(str(out_dir / name), image):
-        raise ImageSetError(f"could not write {out_dir / name}")
-
-
 def _header(
     kind: str, preset: NoisePreset, surface: RulerSurface, ruler: RulerSpec, camera: CameraSpec, **extra: Any
 ) -> dict[str, Any]:
@@ -199,7 +187,7 @@ def render_ruler_random_set(
     p = get_preset(preset) if isinstance(preset, str) else preset
     surface = get_surface(p.name)
     views = random_ruler_views(count, seed=seed, envelope=envelope, ruler=ruler, camera=camera)
-    _prepare(out, force)
+    prepare_folder(out, force)
     rng = np.random.default_rng(seed)
     entries = []
     for k, (pose, anchor) in enumerate(views):
@@ -213,7 +201,7 @@ def render_ruler_random_set(
             texture_seed=texture_seed,
             rng=rng,
         )
-        _write(out, image_name(k), image)
+        write_png(out / image_name(k), image)
         entries.append(_entry(image_name(k), truth))
     header = _header(
         "random",
@@ -261,7 +249,7 @@ def render_ruler_validation_set(
         tilt_y_deg=pick.uniform(-0.3, 0.3),
         camera=camera,
     )
-    _prepare(out, force)
+    prepare_folder(out, force)
     rng = np.random.default_rng(seed)
     to_ruler = table.matrix()
     entries = []
@@ -280,7 +268,7 @@ def render_ruler_validation_set(
             rng=rng,
         )
         name = image_name(k)
-        _write(out, name, image)
+        write_png(out / name, image)
         entries.append(_entry(name, truth, ruler_displacement_um=[ds_um, dt_um]))
         rows.append((name, dx_um, dy_um))
     with (out / DISPLACEMENTS).open("w", newline="", encoding="utf-8") as fh:
