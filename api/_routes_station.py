@@ -11,7 +11,7 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import Response
 from pydantic import BaseModel
 
-from api._auth import Access, is_loopback, motion_access, read_access, require_token
+from api._auth import Access, may_move, motion_access, peer_is_local, read_access, require_token
 from api._deps import Measures, service_of
 from api._errors import ApiError
 from api._gate import DecodeGate
@@ -40,12 +40,11 @@ async def access(request: Request) -> AccessModel:
     open without it: the page says it is read-only, or that it needs the login URL, before anything fails."""
     granted: Access = request.app.state.access
     token, _ = granted.presented(request)
-    peer = request.client.host if request.client is not None else ""
     return AccessModel(
         authenticated=granted.matches(token),
         open_reads=granted.public_read,
-        local=is_loopback(peer),
-        motion=granted.remote_motion or is_loopback(peer),
+        local=peer_is_local(request),
+        motion=may_move(request),
     )
 
 
