@@ -117,7 +117,7 @@ class SessionHost:
         self._listeners.append(listener)
 
     def _on_event(self, runner: SessionRunner, event: EventRow) -> None:
-        # the runner's thread (or its store thread), under the runner's lock: quick work only
+        # the thread delivering the journal's events, holding no lock of the runner (station.runner._journal)
         for listener in list(self._listeners):
             try:
                 listener(event)

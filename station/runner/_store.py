@@ -1,0 +1,210 @@
+"""The store pipeline: a step's captures stored (lossless, fsynced), measured from the stored file and
+recorded in a thread of their own, in order, while the next step's motions run (the arm never waits for
+the disk); and what a plan's analysis gets back from the record.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from station import __version__
+from station.batch import measure_file
+from station.devices import Frame
+from station.plans import CaptureResult, Step
+from station.record import Record
+from station.runner._journal import Journal
+from station.runner._states import EARLY_FAILURE_CAPTURES, FRAMES_PER_ATTEMPT, SessionError
+from station.vision import MeasureParams
+
+log = logging.getLogger("station.runner")
+
+
+@dataclass(frozen=True)
+class Grabbed:
+    """One capture action's frames, with the meta recorded with each (where the arm was, z ...) and the
+    frame index of the first."""
+
+    frames: list[Frame]
+    meta: dict[str, Any]
+    first_frame: int
+
+
+@dataclass
+class StorePipeline:
+    """Stores and measures what each step grabbed, then finishes the step in the record.
+
+    ``on_step_done(step, seconds)`` is called once a step of the session is ``done``; it returns the
+    session's progress for the ``step_finished`` event.
+    """
+
+    record: Record
+    journal: Journal
+    measure_params: MeasureParams
+    scale_calibration: dict[str, Any] | None
+    on_step_done: Callable[[Step, float], dict[str, Any]]
+    captures: int = 0
+    measured_ok: int = 0
+    last_error: str | None = None
+    _pool: ThreadPoolExecutor | None = None
+    _futures: list[Future[None]] = field(default_factory=list)
+
+    def open(self) -> None:
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="runner-store")
+
+    def close(self, error: str | None) -> None:
+        """Store what is still queued (nothing captured is lost), then end the store thread."""
+        pool, self._pool = self._pool, None
+        if pool is not None:
+            pool.shutdown(wait=True)
+        for f in self._futures:
+            exc = f.exception()
+            if exc is not None and str(exc) != error:
+                log.error("storing a capture failed: %s", exc)
+
+    def submit(
+        self,
+        sid: str,
+        step: Step,
+        grabbed: list[Grabbed],
+        data: dict[str, Any],
+        t0: float,
+        failed: str | None = None,
+    ) -> None:
+        """Queue the step's storing; at most one step stored behind the arm (memory stays flat, errors
+        surface within a step)."""
+
+        def task() -> None:
+            self._store_step(sid, step, grabbed, data, t0, failed)
+
+        if self._pool is None:
+            task()
+            return
+        self._futures = [f for f in self._futures if not f.done() or f.exception() is not None]
+        self._futures.append(self._pool.submit(task))
+        while sum(not f.done() for f in self._futures) > 1:
+            next(f for f in self._futures if not f.done()).exception()  # waits for it
+
+    def check(self) -> None:
+        """Raise the first error of the store thread (disk full, record lost ...) in the runner thread."""
+        for f in self._futures:
+            if f.done() and f.exception() is not None:
+                exc = f.exception()
+                self._futures = [g for g in self._futures if g is not f]
+                assert exc is not None
+                raise exc
+
+    def drain(self) -> None:
+        """Wait until everything grabbed is stored; errors are left for ``check``."""
+        for f in list(self._futures):
+            f.exception()
+
+    def _store_step(
+        self,
+        sid: str,
+        step: Step,
+        grabbed: list[Grabbed],
+        data: dict[str, Any],
+        t0: float,
+        failed: str | None,
+    ) -> None:
+        """In the store thread: store and measure the step's frames, then finish the step."""
+        try:
+            ids = [cid for g in grabbed for cid in self._store(sid, step, g)]
+        except BaseException as exc:
+            self.record.finish_step(sid, step.index, data={**data, "error": str(exc)}, state="failed")
+            raise
+        if ids:
+            data = {**data, "captures": ids}
+        if failed is not None:
+            self.record.finish_step(sid, step.index, data={**data, "error": failed}, state="failed")
+            return
+        self.record.finish_step(sid, step.index, data=data)
+        progress = self.on_step_done(step, time.monotonic() - t0)
+        self.journal.emit("step_finished", {"index": step.index, "name": step.name, "progress": progress})
+        if self.captures >= EARLY_FAILURE_CAPTURES and self.measured_ok == 0:
+            raise SessionError(
+                f"none of the first {self.captures} captures could be measured (last: {self.last_error}); "
+                "check that the crossing is in view and in focus, the lighting, and the measurement "
+                "parameters, then start again"
+            )
+
+    def _store(self, sid: str, step: Step, grabbed: Grabbed) -> list[int]:
+        """Store each frame (lossless, fsynced), then measure it from the stored file and record that."""
+        ids = []
+        params_doc = self.measure_params.model_dump(mode="json")
+        software = f"station {__version__}"
+        meta = grabbed.meta
+        for fi, frame in enumerate(grabbed.frames):
+            cap = self.record.save_capture(
+                sid,
+                step.index,
+                grabbed.first_frame + fi,
+                frame.image,
+                timestamp_s=frame.timestamp_s,
+                meta={**meta, "frame_id": frame.frame_id},
+                z_mm=meta.get("z_mm"),
+            )
+            self.captures += 1
+            self.journal.emit(
+                "image_captured", {"capture_id": cap.id, "path": cap.path, "step": step.index, "frame": fi}
+            )
+            result = measure_file(Path(self.record.data_dir) / cap.path, self.measure_params).to_json()
+            result["file"] = cap.path
+            if self.scale_calibration is not None and result.get("ok"):
+                result.setdefault("diagnostics", {})["scale_calibration"] = self.scale_calibration
+            self.record.add_measurement(sid, cap.id, result, params=params_doc, software=software)
+            ok = bool(result.get("ok"))
+            self.measured_ok += ok
+            if not ok:
+                self.last_error = result.get("error")
+            self.journal.emit(
+                "measurement",
+                {
+                    "capture_id": cap.id,
+                    "ok": ok,
+                    "center_px": result.get("center_px"),
+                    "center_mm": result.get("center_mm"),
+                    "z_mm": meta.get("z_mm"),
+                    "error": result.get("error"),
+                    "code": result.get("code"),
+                },
+            )
+            ids.append(cap.id)
+        return ids
+
+
+def stored_captures(record: Record, source: str, *, measured_in: str | None = None) -> list[CaptureResult]:
+    """The captures of session ``source``'s completed steps with the measurements session ``measured_in``
+    recorded of them (the source's own by default): what a plan's analysis gets."""
+    measurements = {m.capture_id: m for m in record.measurements(measured_in or source)}
+    done = {s.index for s in record.steps(source) if s.state == "done"}
+    caps = [c for c in record.captures(source) if c.step_index in done]
+    # a step run again after an interruption keeps its earlier attempt's frames (nothing captured is
+    # lost); the analysis takes the attempt that completed: the latest
+    latest: dict[int, int] = {}
+    for c in caps:
+        latest[c.step_index] = max(latest.get(c.step_index, 0), c.frame_index // FRAMES_PER_ATTEMPT)
+    out = []
+    for cap in caps:
+        if cap.frame_index // FRAMES_PER_ATTEMPT != latest[cap.step_index]:
+            continue
+        m = measurements.get(cap.id)
+        out.append(
+            CaptureResult(
+                cap.id,
+                cap.step_index,
+                cap.frame_index,
+                cap.meta,
+                m.result if m else None,
+                cap.width,
+                cap.height,
+                cap.z_mm,
+            )
+        )
+    return out
