@@ -10,6 +10,7 @@ from fastapi import Depends, Path, Request
 
 from api._errors import ApiError
 from api._measurements import Measurements
+from api._reads import SessionReads
 from api._scale_calibrations import ScaleCalibrations
 from api._service import StationService
 from api._session_files import SessionFiles
@@ -24,6 +25,10 @@ def service_of(request: Request) -> StationService:
     return service
 
 
+def _reads(request: Request) -> SessionReads:
+    return service_of(request).reads
+
+
 def _session_files(request: Request) -> SessionFiles:
     return service_of(request).files
 
@@ -36,6 +41,10 @@ def _scale_calibrations(request: Request) -> ScaleCalibrations:
     return service_of(request).scale_calibrations
 
 
+Service = Annotated[StationService, Depends(service_of)]
+"""Sessions started and controlled, the arm outside sessions, the operator's prompts: ``api._service``."""
+Reads = Annotated[SessionReads, Depends(_reads)]
+"""The sessions, the station and the events as clients read them: ``api._reads``."""
 Files = Annotated[SessionFiles, Depends(_session_files)]
 """The record's session files (outcome, report, export, import): ``api._session_files``."""
 Measures = Annotated[Measurements, Depends(_measurements)]

@@ -26,7 +26,7 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.sse import EventSourceResponse, ServerSentEvent
 
 from api._auth import stream_access
-from api._deps import SessionId, service_of
+from api._deps import Reads, SessionId, service_of
 from api._models import EventModel
 from api._openapi import problems
 from station.record import EventRow, RecordUnavailableError
@@ -68,7 +68,7 @@ class _Hub:
         self._waiters: set[asyncio.Event] = set()
         self._pending = False
         self._rendered: dict[int, str] = {}
-        self._unsubscribe = service_of(request).subscribe(self._on_event)
+        self._unsubscribe = service_of(request).reads.subscribe(self._on_event)
 
     def _on_event(self, _: EventRow) -> None:
         if self._pending:
@@ -118,16 +118,15 @@ async def _wait(waiter: asyncio.Event, timeout_s: float) -> None:
 
 
 async def session_cursor(
-    request: Request, session_id: SessionId, last_event_id: LastEventId = None
+    reads: Reads, session_id: SessionId, last_event_id: LastEventId = None
 ) -> tuple[str, int]:
     """The session's full id and the sequence number to resume after: checked before the stream starts
     (404 for an unknown session, 422 for a malformed Last-Event-ID). Coroutines, like the token check
     (see ``api/_auth.py``): this process's running session needs no look-up."""
     after = last_event_id or 0
-    service = service_of(request)
-    if service.session_ended(session_id) is not None:  # this process's latest session, by its full id
+    if reads.session_ended(session_id) is not None:  # this process's latest session, by its full id
         return session_id, after
-    return (await run_in_threadpool(service.record.get_session, session_id)).id, after
+    return await run_in_threadpool(reads.session_id, session_id), after
 
 
 async def station_cursor(last_event_id: LastEventId = None) -> int:
@@ -151,10 +150,9 @@ def _sse(hub: _Hub, e: EventRow, event_id: int) -> ServerSentEvent:
     responses={200: STREAM, **problems(401, 403, 404, 422, 503)},
 )
 async def session_events(
-    request: Request, cursor: tuple[str, int] = Depends(session_cursor)
+    request: Request, reads: Reads, cursor: tuple[str, int] = Depends(session_cursor)
 ) -> AsyncIterator[ServerSentEvent]:
     """The session's events from after ``Last-Event-ID`` (its sequence number), live until it ends."""
-    service = service_of(request)
     sid, after_seq = cursor
     hub = _hub(request)
     waiter = hub.waiter()
@@ -164,19 +162,19 @@ async def session_events(
         while True:
             waiter.clear()  # before reading: an event recorded after the read wakes the wait below
             # the running session's events from memory, on the loop; the record (a thread) otherwise
-            batch = service.buffered_events(sid, last_seq)
+            batch = reads.buffered_events(sid, last_seq)
             if batch is None:
-                batch = await run_in_threadpool(service.events_after_seq, sid, last_seq)
+                batch = await run_in_threadpool(reads.events_after_seq, sid, last_seq)
             for e in batch:
                 yield _sse(hub, e, e.seq)
                 last_seq = e.seq
             if not batch:
-                ended = service.session_ended(sid)
+                ended = reads.session_ended(sid)
                 if ended is None:  # not this process's session: ask the record
-                    ended = (await run_in_threadpool(service.record.get_session, sid)).state in FINAL_STATES
+                    ended = (await run_in_threadpool(reads.session_state, sid)) in FINAL_STATES
                 if ended:
                     # a last look: events recorded between the read and the state
-                    for e in await run_in_threadpool(service.events_after_seq, sid, last_seq):
+                    for e in await run_in_threadpool(reads.events_after_seq, sid, last_seq):
                         yield _sse(hub, e, e.seq)
                     return
                 if request.app.state.stopping.is_set() or await request.is_disconnected():
@@ -201,17 +199,16 @@ def _record_gone(what: str, exc: RecordUnavailableError) -> None:
     responses={200: STREAM, **problems(401, 403, 422, 503)},
 )
 async def station_events(
-    request: Request, after_id: int = Depends(station_cursor)
+    request: Request, reads: Reads, after_id: int = Depends(station_cursor)
 ) -> AsyncIterator[ServerSentEvent]:
     """Every session's events from after ``Last-Event-ID`` (the station-wide id), until the client leaves."""
-    service = service_of(request)
     hub = _hub(request)
     waiter = hub.waiter()
     try:
         yield ServerSentEvent(comment="station events", retry=RETRY_MS)
         while True:
             waiter.clear()
-            batch = await run_in_threadpool(service.record.events, None, after_id=after_id)
+            batch = await run_in_threadpool(reads.events, None, after_id=after_id)
             for e in batch:
                 yield _sse(hub, e, e.id)
                 after_id = e.id

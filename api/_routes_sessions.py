@@ -13,7 +13,7 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import FileResponse, Response
 
 from api._auth import check_motion, may_move, read_access, require_token
-from api._deps import Files, Measures, SessionId, service_of
+from api._deps import Files, Measures, Reads, SessionId, service_of
 from api._errors import ApiError
 from api._models import (
     ActionRequest,
@@ -112,12 +112,15 @@ async def create(request: Request, body: SessionCreate) -> Response:
     responses=problems(401, 403, 422, 503),
 )
 async def list_sessions(
-    request: Request, limit: int = Query(50, ge=1, le=1000), offset: int = Query(0, ge=0, le=10**9)
+    request: Request,
+    reads: Reads,
+    limit: int = Query(50, ge=1, le=1000),
+    offset: int = Query(0, ge=0, le=10**9),
 ) -> Response:
     # quick reads (the service's cache while a session runs, else a millisecond of SQLite, WAL: never
     # waiting on the runner) run on the loop: a hop to the thread pool and back costs more than the read;
     # a database server's in the thread pool (one that went away may keep a connection waiting)
-    views, total = await quick(request, service_of(request).list_sessions, limit=limit, offset=offset)
+    views, total = await quick(request, reads.list_sessions, limit=limit, offset=offset)
     return rendered(SessionPage.model_construct(items=[session_model(v) for v in views], total=total))
 
 
@@ -139,13 +142,13 @@ async def list_sessions(
         ),
     },
 )
-async def import_session(request: Request, files: Files) -> Response:
+async def import_session(request: Request, files: Files, reads: Reads) -> Response:
     """Import a session from a zip written by ``/export.zip`` (or a zipped ``station export`` folder);
     the body is the zip (``Content-Type: application/zip``)."""
     require_type(request, ZIP_TYPES)
     data = await read_body(request, MAX_IMPORT_BYTES)
     row = await run_in_threadpool(files.import_zip, data, max_bytes=MAX_IMPORT_BYTES * 4)
-    return rendered(session_model(await run_in_threadpool(service_of(request).get_session, row.id)), 201)
+    return rendered(session_model(await run_in_threadpool(reads.get_session, row.id)), 201)
 
 
 @router.get(
@@ -154,8 +157,8 @@ async def import_session(request: Request, files: Files) -> Response:
     dependencies=[Depends(read_access)],
     responses=problems(*ONE),
 )
-async def get(request: Request, session_id: SessionId) -> Response:
-    return rendered(session_model(await quick(request, service_of(request).get_session, session_id)))
+async def get(request: Request, reads: Reads, session_id: SessionId) -> Response:
+    return rendered(session_model(await quick(request, reads.get_session, session_id)))
 
 
 @router.post(

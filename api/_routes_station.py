@@ -12,7 +12,7 @@ from fastapi.responses import Response
 from pydantic import BaseModel
 
 from api._auth import Access, may_move, motion_access, peer_is_local, read_access, require_token
-from api._deps import Measures, service_of
+from api._deps import Measures, Reads, service_of
 from api._errors import ApiError
 from api._gate import DecodeGate
 from api._models import AccessModel, Health, StationModel, rendered
@@ -51,9 +51,9 @@ async def access(request: Request) -> AccessModel:
 @router.get(
     "/station", response_model=StationModel, dependencies=[Depends(read_access)], responses=problems(401, 403)
 )
-async def station(request: Request) -> Response:
+async def station(reads: Reads) -> Response:
     """Configuration (secrets redacted), devices' identities and states from the cached snapshot."""
-    return rendered(StationModel.model_construct(**service_of(request).station()))
+    return rendered(StationModel.model_construct(**reads.station()))
 
 
 @router.get(

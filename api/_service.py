@@ -11,27 +11,23 @@ The worker builds the devices once (unconnected) when the service starts; the ru
 closes them per session. The station's description comes from the worker's report and the events:
 nothing here calls a device.
 
-Reads are cheap while a session runs (clients poll): the running session's row and the session list
-come from a cache that every ``state`` event invalidates (a row changes only with its state, and the
-list at most a second old for sessions another process imports), the station's description from a
-snapshot at most a second old, and the running session's events from an in-memory buffer of the
-events the worker reported (the record is read only for what the buffer does not hold).
+Its collaborators, each with one job: ``reads`` (``api._reads``: the sessions' rows, the station's
+description and the running session's events, cached while a session runs), ``files`` (the record's
+session files), ``measurements``, ``scale_calibrations`` and ``robot_state``; the routers get each of them
+by a FastAPI dependency (``api._deps``) and never reach into the record. This module starts, controls
+and answers: sessions, the arm outside sessions, the operator's prompts.
 """
 
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import logging
 import threading
-import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
 from typing import Any
 
-from api._event_buffer import EventBuffer
 from api._measurements import Measurements
-from api._progress import RecordedProgress
+from api._reads import SessionReads, SessionView
 from api._robot import RobotMirror
 from api._scale_calibrations import ScaleCalibrations
 from api._session_files import SessionFiles
@@ -44,15 +40,13 @@ from station.plans import PlanError
 from station.prompts import Prompt, PromptAnswer
 from station.record import (
     ArchiveRefusedError,
-    EventRow,
     Record,
     RecordUnavailableError,
     SessionLockError,
-    SessionRow,
     lock_holder,
     station_lock,
 )
-from station.runner import ACTIVE_STATES, FINAL_STATES, Progress, RunnerState, reconcile
+from station.runner import ACTIVE_STATES, SessionState, reconcile
 from station.session import open_record, station_measure_params
 from station.vision import field_names
 from station.worker import (
@@ -67,22 +61,9 @@ from station.worker import (
 
 log = logging.getLogger(__name__)
 
-CACHE_MAX_AGE_S = 1.0
-"""The longest a cached read lags behind the record (a session imported by another process)."""
-EVENT_BUFFER = 4096
-"""The running session's latest events kept in memory for its event streams."""
-
 ACTIONS = ("pause", "resume", "stop", "abort")
 TO_REFERENCE_S = 600.0
 """The longest the service waits for the arm's route to its reference pose (a real arm, slow speed)."""
-
-
-@dataclass(frozen=True)
-class SessionView:
-    """A session as the API shows it: the record's row plus the live progress when it runs."""
-
-    row: SessionRow
-    progress: Progress
 
 
 class StationService:
@@ -94,14 +75,10 @@ class StationService:
         self.record: Record = open_record(settings.data, settings.database, self.config)
         self._lock = threading.RLock()
         self._closed = False
-        # the read caches (see the module's docstring): ``_generation`` counts the runner's state changes,
-        # session creations, imports and actions; a cached read is good while it is unchanged
-        self._generation = 0
-        self._row_cache: tuple[int, SessionRow] | None = None
-        self._list_cache: tuple[int, float, list[SessionRow]] | None = None
-        self._station_cache: tuple[tuple[Any, ...], float, dict[str, Any]] | None = None
-        self.event_buffer = EventBuffer(EVENT_BUFFER)
-        """The worker's latest session's events, and the listeners of every event."""
+        self.robot_state = RobotMirror(lambda: self.worker.call("robot_state", timeout_s=60))
+        """The robot's state and pose (read by the worker between sessions, see ``api/_robot.py``)."""
+        self.reads = SessionReads(self.record, lambda: self.worker, self.robot_state, settings)
+        """The sessions, the station and the events as clients read them (``api._reads``)."""
         self.interrupted_at_start = self._reconcile()
         try:
             self.worker = WorkerClient(
@@ -115,25 +92,22 @@ class StationService:
                     log_level=min(logging.INFO, logging.getLogger().getEffectiveLevel()),
                     nice=settings.worker_nice,
                 ),
-                on_event=self._on_event,
+                on_event=self.reads.on_event,
                 on_exit=self._on_worker_exit,
                 on_ended=self._on_session_failed,
             )
         except BaseException:
             self.record.close()
             raise
-        self._identities: dict[str, Any] = dict(self.worker.info.identities)
-        self._recorded = RecordedProgress(self.record)
+        self.reads.identities = dict(self.worker.info.identities)
         self.measurements = Measurements(
             self.record, lambda: station_measure_params(self.record, self.config)[0], self._grab
         )
         """Frames and uploads measured, and the stored captures shown with their measurement."""
         self.files = SessionFiles(self.record, self.note_import)
         """The record's session files (outcome, report, export, import)."""
-        self.scale_calibrations = ScaleCalibrations(self.record.data_dir, lambda: self.running)
+        self.scale_calibrations = ScaleCalibrations(self.record.data_dir, lambda: self.reads.running)
         """The station's scale calibration, its history and the revert."""
-        self.robot_state = RobotMirror(lambda: self.worker.call("robot_state", timeout_s=60))
-        """The robot's state and pose (read by the worker between sessions, see ``api/_robot.py``)."""
         self.robot_state.refresh()
 
     @property
@@ -167,13 +141,13 @@ class StationService:
         marked = self._reconcile()
         if marked:
             log.error("session(s) %s interrupted: the station worker process ended", ", ".join(marked))
-        self._generation += 1
+        self.reads.changed()
 
     def _on_session_failed(self, status: RunnerStatus) -> None:
         """The worker's session failed and its record may not say so yet (the worker records it once it
-        can): shown ``failed`` with ``status.error`` from now on (:meth:`_view`)."""
+        can): shown ``failed`` with ``status.error`` from now on (``api._reads``)."""
         log.error("session %s failed: %s", status.session_id, status.error)
-        self._generation += 1
+        self.reads.changed()
 
     def close(self, *, timeout_s: float = 30.0) -> None:
         """Shut down (idempotent): a running session is aborted (the robot stopped through its latched
@@ -185,108 +159,6 @@ class StationService:
             self._closed = True
         self.worker.close(timeout_s)
         self.record.close()
-
-    # ------------------------------------------------------------------ events
-
-    def subscribe(self, listener: Callable[[EventRow], None]) -> Callable[[], None]:
-        """Call ``listener(event)`` for every event of the worker's sessions (from the worker handle's
-        reader thread); returns the unsubscribe."""
-        return self.event_buffer.subscribe(listener)
-
-    def _on_event(self, event: EventRow) -> None:
-        # the worker handle's reader thread: only quick, non-blocking work here
-        if event.type == "connected":
-            self._identities = dict(event.data.get("devices", {}))
-        elif event.type == "state":
-            self._generation += 1
-            if event.data.get("state") in FINAL_STATES:
-                self.robot_state.refresh()  # a thread of its own: this reader thread delivers the answer
-        self.event_buffer.publish(event)
-
-    def events(self, session_id: str | None, *, after_id: int = 0, limit: int = 500) -> list[EventRow]:
-        sid = self.record.get_session(session_id).id if session_id is not None else None
-        return self.record.events(sid, after_id=after_id, limit=limit)
-
-    def events_after_seq(self, session_id: str, after_seq: int, *, limit: int = 500) -> list[EventRow]:
-        """A session's events with ``seq > after_seq`` (its stream resumes by sequence number)."""
-        buffered = self.event_buffer.after(session_id, after_seq, limit=limit)
-        if buffered is not None:
-            return buffered
-        return self.record.events(session_id, after_seq=after_seq, limit=limit)
-
-    def buffered_events(self, session_id: str, after_seq: int, *, limit: int = 500) -> list[EventRow] | None:
-        """``EventBuffer.after``: no database read (the event streams call this on the event loop)."""
-        return self.event_buffer.after(session_id, after_seq, limit=limit)
-
-    def session_ended(self, session_id: str) -> bool | None:
-        """Whether the worker's run of ``session_id`` has ended (None: not the worker's latest session)."""
-        status = self.worker.status
-        if status is None or status.session_id != session_id:
-            return None
-        return self.running is None
-
-    # ------------------------------------------------------------------ the station
-
-    @property
-    def running(self) -> RunnerStatus | None:
-        """The worker's session while it has not ended (as of its latest event)."""
-        status = self.worker.status
-        if status is None or status.state in FINAL_STATES or not self.worker.alive:
-            return None
-        return status
-
-    def station(self) -> dict[str, Any]:
-        """Configuration (secrets redacted), each device's identity and state; never touches a device.
-        At most a second old (the station lock's holder, read from its file)."""
-        runner = self.running
-        key = (
-            runner.session_id if runner else None,
-            runner.state if runner else None,
-            id(self._identities),
-            self.robot_state.generation,
-        )
-        cached = self._station_cache
-        now = time.monotonic()
-        if cached is not None and cached[0] == key and now - cached[1] < CACHE_MAX_AGE_S:
-            return cached[2]
-        doc = self._station(runner)
-        self._station_cache = (key, now, doc)
-        return doc
-
-    def _station(self, runner: RunnerStatus | None) -> dict[str, Any]:
-        info = self.worker.info
-        busy = runner is not None
-        robot = self.robot_state.doc(busy=busy) if "robot" in info.devices else None
-        devices: dict[str, Any] = {
-            name: {"identity": self._identities.get(name, {}), "state": "in_session" if busy else "idle"}
-            for name in info.devices
-        }
-        if robot is not None:
-            # its identity as the latest read gave it (the worker reads it at start: never "?" until the
-            # first session), its state as that read found it
-            devices["robot"] = {
-                "identity": {**devices["robot"]["identity"], **(self.robot_state.identity() or {})},
-                "state": robot["state"],
-            }
-        holder = lock_holder(self.record.data_dir)
-        return {
-            "name": info.name or "offline",
-            "sim": self.settings.sim,
-            "manual_prompts": self.settings.manual_prompts,
-            "config": info.config_snapshot,
-            "devices": devices,
-            "data_dir": str(self.record.data_dir),
-            "record": self.record.url,
-            "session": (
-                {"id": runner.session_id, "kind": runner.kind, "state": str(runner.state)} if runner else None
-            ),
-            "lock": holder,
-            "plans": list(KIND_NAMES),
-            "worker": {"alive": self.worker.alive, "pid": self.worker.pid, "nice": info.nice},
-            "robot": robot,
-        }
-
-    # ------------------------------------------------------------------ measurement
 
     # ------------------------------------------------------------------ the arm outside sessions
 
@@ -347,7 +219,7 @@ class StationService:
         if self._closed:
             raise ConflictError("the service is shutting down")
         sid = self.worker.call(method, *args)
-        self._generation += 1
+        self.reads.changed()
         return self.get_session(sid)
 
     def wait(self, timeout_s: float | None = None) -> bool:
@@ -358,73 +230,8 @@ class StationService:
             return True
         return done
 
-    def list_sessions(self, *, limit: int, offset: int) -> tuple[list[SessionView], int]:
-        rows = self._session_rows()
-        return [self._view(r) for r in rows[offset : offset + limit]], len(rows)
-
-    def _session_rows(self) -> list[SessionRow]:
-        """The record's sessions; while the worker runs one, from a cache that its state changes
-        invalidate (and at most a second old: another process may import a session meanwhile)."""
-        if self.running is None:
-            self._list_cache = None
-            return self.record.list_sessions()
-        generation, now = self._generation, time.monotonic()
-        cached = self._list_cache
-        if cached is not None and cached[0] == generation and now - cached[1] < CACHE_MAX_AGE_S:
-            return cached[2]
-        rows = self.record.list_sessions()
-        if self._generation == generation:  # no state change while reading: the rows are current
-            self._list_cache = (generation, now, rows)
-        return rows
-
     def get_session(self, session_id: str) -> SessionView:
-        return self._view(self._session_row(session_id))
-
-    def _session_row(self, session_id: str) -> SessionRow:
-        """The record's row; the running session's from a cache its state changes invalidate (its row
-        changes only with its state while it runs)."""
-        runner = self.running
-        if runner is None or runner.session_id != session_id:
-            try:
-                return self.record.get_session(session_id)
-            except RecordUnavailableError:
-                # the worker's latest session as last read: its state and error come from the worker
-                cached, status = self._row_cache, self.worker.status
-                if cached is None or status is None or not cached[1].id == session_id == status.session_id:
-                    raise
-                return cached[1]
-        generation = self._generation
-        cached = self._row_cache
-        if cached is not None and cached[0] == generation and cached[1].id == session_id:
-            return cached[1]
-        row = self.record.get_session(session_id)
-        now_running = self.running
-        if (
-            self._generation == generation
-            and now_running is not None
-            and now_running.session_id == session_id
-        ):
-            self._row_cache = (generation, row)
-        return row
-
-    def _view(self, row: SessionRow) -> SessionView:
-        status = self.worker.status
-        if status is not None and status.session_id == row.id:
-            state = status.state
-            if state not in FINAL_STATES and row.state != state and self.worker.alive:
-                # the runner's state is set (in memory, under its lock) before the record's: a client that
-                # sees the prompt it raised finds the session awaiting the operator; a final state comes
-                # from the record, with its error
-                row = dataclasses.replace(row, state=str(state))
-            elif status.error is not None and row.state in ACTIVE_STATES:
-                # it failed where its runner could not record it (the record gone): the worker says so
-                row = dataclasses.replace(row, state=str(state), error=status.error)
-            if status.progress.total == 0 and status.state not in FINAL_STATES:
-                # a run that has not counted its steps yet (a resumed one, before pre-flight): what the
-                # record holds, so that its count goes on from where it stopped
-                return SessionView(row, self._recorded.of(row))
-            return SessionView(row, status.progress)
-        return SessionView(row, self._recorded.of(row))
+        return self.reads.get_session(session_id)
 
     def act(self, session_id: str, action: str) -> SessionView:
         """pause, resume (also continues an interrupted, stopped, failed or aborted session), stop, abort."""
@@ -434,14 +241,14 @@ class StationService:
         try:
             handled = self.worker.call("act", row.id, action)
         finally:
-            self._generation += 1
+            self.reads.changed()
         if handled:
             return self.get_session(row.id)
         if action == "resume" and row.state in (
-            RunnerState.INTERRUPTED,
-            RunnerState.STOPPED,
-            RunnerState.FAILED,
-            RunnerState.ABORTED,
+            SessionState.INTERRUPTED,
+            SessionState.STOPPED,
+            SessionState.FAILED,
+            SessionState.ABORTED,
         ):
             return self._start("resume", row.id)
         if row.state in ACTIVE_STATES:
@@ -479,7 +286,7 @@ class StationService:
 
     def note_import(self) -> None:
         """A session was imported into the record: the cached reads are stale."""
-        self._generation += 1
+        self.reads.changed()
 
 
 def measurement_names(values: Mapping[str, Any]) -> dict[str, Any]:

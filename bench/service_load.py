@@ -362,7 +362,7 @@ def main() -> None:
                     ).result()
                     loaded_windows.append((stats.started_at, time.perf_counter()))
                     total.merge(stats)
-            ended = service.session_ended(sid)
+            ended = service.reads.session_ended(sid)
             with contextlib.suppress(Exception):
                 service.act(sid, "abort")
             service.wait()

@@ -30,7 +30,7 @@ from sim.station import build_sim_station
 from station.kinds import get_plan
 from station.plans import parse_params
 from station.record import EventRow, Record
-from station.runner import RunnerState, SessionRunner
+from station.runner import SessionRunner, SessionState
 from station.testing import FakeCamera, FakeStation, draw_cross
 
 
@@ -85,7 +85,7 @@ def overhead(cycles: int = 8, joint: int = 1, speed_pct: int = 80, settle_s: flo
             state = runner.run()
         finally:
             devices.close_owned()
-        if state is not RunnerState.SUCCEEDED:
+        if state is not SessionState.SUCCEEDED:
             raise RuntimeError(f"benchmark session {state}: {runner.error}")
         log = sim.twin.motion_log
     # cycle steps are 1..cycles (step 0 is the reference capture)
@@ -139,7 +139,7 @@ def memory(captures: int = 10_000) -> dict[str, Any]:
         runner = SessionRunner(record, plan, params, devices=fake.devices())
         runner.subscribe(on_event)
         state = runner.run()
-        if state is not RunnerState.SUCCEEDED:
+        if state is not SessionState.SUCCEEDED:
             raise RuntimeError(f"benchmark session {state}: {runner.error}")
     elapsed = time.perf_counter() - t0
     return {

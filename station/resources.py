@@ -27,7 +27,7 @@ from pydantic import BaseModel, ConfigDict, Field, create_model
 from station.kinds import KINDS
 from station.plans._kind import Kind
 from station.record import SessionRow
-from station.runner import Progress, RunnerState
+from station.runner import Progress, SessionState
 
 
 class SessionSummary(BaseModel):
@@ -35,7 +35,7 @@ class SessionSummary(BaseModel):
 
     id: str
     kind: str
-    state: RunnerState
+    state: SessionState
     created_at: str = Field(description="ISO 8601, UTC")
     updated_at: str = Field(description="ISO 8601, UTC")
     station: str
@@ -49,7 +49,7 @@ class SessionSummary(BaseModel):
         return {
             "id": row.id,
             "kind": row.kind,
-            "state": RunnerState(row.state),
+            "state": SessionState(row.state),
             "created_at": row.created_at.isoformat(),
             "updated_at": row.updated_at.isoformat(),
             "station": row.station,
@@ -84,14 +84,18 @@ class SessionOutcome(BaseModel):
 
     id: str
     kind: str
-    state: RunnerState
+    state: SessionState
     results: dict[str, Any]
     error: str | None = None
 
     @classmethod
     def of(cls, row: SessionRow) -> SessionOutcome:
         return cls.model_construct(
-            id=row.id, kind=row.kind, state=RunnerState(row.state), results=row.results or {}, error=row.error
+            id=row.id,
+            kind=row.kind,
+            state=SessionState(row.state),
+            results=row.results or {},
+            error=row.error,
         )
 
     def to_json(self) -> dict[str, Any]:

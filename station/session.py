@@ -1,7 +1,7 @@
 """Scripted sessions: one function that builds the station, runs a plan and returns its outcome.
 
 The CLI's ``station run`` and the example scripts use exactly this; the service's worker
-(``station.worker``) runs its sessions with the same building blocks::
+(``station.worker``) starts its sessions with the same rule (``SessionStart``)::
 
     from station.session import run_session
     outcome = run_session("repeatability", sim=True, params={"cycles": 10})
@@ -15,11 +15,14 @@ import logging
 import os
 import threading
 from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from pydantic import BaseModel
+
 from station import scale_calibration as scal
-from station.compute import ComputeSpec, open_backend
+from station.compute import ComputeSpec, MeasureBackend, open_backend
 from station.config import (
     ConfigurationError,
     StationConfig,
@@ -30,7 +33,7 @@ from station.config import (
 )
 from station.config import open_station as build_station
 from station.kinds import KIND_NAMES, get_kind, get_plan
-from station.plans import PlanError, parse_params
+from station.plans import Plan, PlanError, parse_params
 from station.record import EventRow, Record, SessionRow
 from station.resources import SessionOutcome
 from station.runner import SessionError, SessionRunner
@@ -127,6 +130,78 @@ def terminal_prompts(devices: StationDevices) -> Iterator[None]:
         done.set()
 
 
+@dataclass(frozen=True)
+class SessionStart:
+    """What starts a session, new or resumed, wherever it runs (``station run``, the service's worker):
+    its plan and validated parameters, its measurement parameters and scale calibration record, and the
+    session it resumes (``None`` for a new one)."""
+
+    plan: Plan
+    params: BaseModel
+    measure: MeasureParams
+    scale_calibration: dict[str, Any] | None
+    previous: SessionRow | None = None
+
+    @classmethod
+    def new(
+        cls,
+        record: Record,
+        kind: str,
+        params: Mapping[str, Any],
+        cfg: StationConfig | None,
+        assignments: Mapping[str, Any] | None = None,
+        *,
+        check: Callable[[Plan], None] | None = None,
+    ) -> SessionStart:
+        """A new session of ``kind``: its parameters checked (PlanError naming the field), then
+        ``check(plan)`` (whether this station can run it), then the measurement parameters and scale
+        calibration as ``session_measure_params`` makes them."""
+        plan = get_plan(kind)
+        plan_params = parse_params(plan, dict(params))
+        if check is not None:
+            check(plan)
+        measure, cal_doc = session_measure_params(record, kind, dict(params), cfg, assignments)
+        return cls(plan, plan_params, measure, cal_doc)
+
+    @classmethod
+    def resume(cls, record: Record, session_id: str) -> SessionStart:
+        """Session ``session_id`` continued with its own parameters (SessionError for a succeeded one)."""
+        previous = record.get_session(session_id)
+        if previous.state == "succeeded":
+            raise SessionError(f"session {previous.id} succeeded; there is nothing to resume")
+        plan = get_plan(previous.kind)
+        return cls(
+            plan,
+            parse_params(plan, dict(previous.params.get("plan", {}))),
+            MeasureParams.model_validate(previous.params.get("measure", {})),
+            previous.params.get("scale_calibration"),
+            previous,
+        )
+
+    def runner(
+        self,
+        record: Record,
+        *,
+        devices: StationDevices | None,
+        station: str,
+        compute: MeasureBackend | None,
+        jobs: int = 1,
+    ) -> SessionRunner:
+        """The session's runner (``devices`` only for a plan that needs them)."""
+        return SessionRunner(
+            record,
+            self.plan,
+            self.params,
+            devices=devices if self.plan.needs else None,
+            measure_params=self.measure,
+            scale_calibration=self.scale_calibration,
+            resume_session=self.previous,
+            jobs=jobs,
+            compute=compute,
+            station=station,
+        )
+
+
 def run_session(
     kind: str | None = None,
     *,
@@ -154,28 +229,22 @@ def run_session(
     cfg = config if isinstance(config, StationConfig) or config is None else load_config(config)
     record = open_record(data, database, cfg)
     try:
-        previous: SessionRow | None = None
         if resume is not None:
-            previous = record.get_session(resume)
-            if previous.state == "succeeded":
-                raise SessionError(f"session {previous.id} succeeded; there is nothing to resume")
-            kind = previous.kind
-        if kind is None:
+            start = SessionStart.resume(record, resume)
+        elif kind is None:
             raise PlanError(f"give a session kind ({', '.join(KIND_NAMES)}) or resume")
-        plan = get_plan(kind)
-        plan_values = dict(previous.params.get("plan", {})) if previous is not None else dict(params or {})
-        plan_params = parse_params(plan, plan_values)
-        if previous is None and plan.needs and not sim and cfg is None:
-            raise ConfigurationError(f"a {kind} session drives hardware: give --sim or --config FILE")
+        else:
+
+            def station_given(plan: Plan) -> None:
+                if plan.needs and not sim and cfg is None:
+                    raise ConfigurationError(f"a {kind} session drives hardware: give --sim or --config FILE")
+
+            start = SessionStart.new(record, kind, params or {}, cfg, assignments, check=station_given)
+        plan, previous = start.plan, start.previous
         if previous is not None and plan.needs and not sim and cfg is None:
             sim = previous.config.get("name") == "sim"
             if not sim:
                 raise ConfigurationError(f"give --config FILE to resume {previous.id} on its station")
-        if previous is not None:
-            measure = MeasureParams.model_validate(previous.params.get("measure", {}))
-            cal_doc = previous.params.get("scale_calibration")
-        else:
-            measure, cal_doc = session_measure_params(record, kind, plan_values, cfg, assignments)
         devices: StationDevices | None = None
         if plan.needs and sim:
             devices = open_sim_station(**(dict(sim) if isinstance(sim, Mapping) else {}))
@@ -185,18 +254,8 @@ def run_session(
         spec = compute or (cfg.compute.spec(jobs) if cfg is not None else ComputeSpec(jobs=jobs))
         backend = open_backend(spec)
         try:
-            runner = SessionRunner(
-                record,
-                plan,
-                plan_params,
-                devices=devices,
-                measure_params=measure,
-                scale_calibration=cal_doc,
-                resume_session=previous,
-                jobs=jobs,
-                compute=backend,
-                station=(devices.config.name if devices is not None else (cfg.name if cfg else "default")),
-            )
+            station = devices.config.name if devices is not None else (cfg.name if cfg else "default")
+            runner = start.runner(record, devices=devices, station=station, compute=backend, jobs=jobs)
             if on_event is not None:
                 runner.subscribe(on_event)
             if on_runner is not None:

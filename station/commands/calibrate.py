@@ -57,7 +57,7 @@ def run_calibrate(parser: argparse.ArgumentParser, args: argparse.Namespace) -> 
     from station.plans import parse_params as validate_params
     from station.record import RecordError
     from station.resources import SessionOutcome, dumps
-    from station.runner import RunnerState, stored_captures
+    from station.runner import SessionState, stored_captures
     from station.session import open_record
     from station.vision import MeasureParams
 
@@ -110,7 +110,7 @@ def run_calibrate(parser: argparse.ArgumentParser, args: argparse.Namespace) -> 
         print(f"calibration: {path}", file=sys.stderr if args.json else sys.stdout)
     if args.json:
         outcome = SessionOutcome.model_construct(
-            id=session.id, kind=session.kind, state=RunnerState(session.state), results=results, error=None
+            id=session.id, kind=session.kind, state=SessionState(session.state), results=results, error=None
         )
         print(dumps(outcome))
     else:

@@ -15,7 +15,7 @@ SessionState = Literal[
     "aborted", "failed", "succeeded", "interrupted",
 ]  # fmt: skip
 SESSION_STATES: tuple[str, ...] = get_args(SessionState)
-"""The runner's state names (``station.runner.RunnerState``), which the record cannot import."""
+"""The runner's state names (``station.runner.SessionState``), which the record cannot import."""
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """The session runner: runs one plan over the station's devices, records everything, obeys the operator.
 
-States: ``RunnerState``, with their transitions in ``station.runner._states``.
+States: ``SessionState``, with their transitions in ``station.runner._states``.
 
 * Every session (and every resume) starts at its plan's reference pose: when the arm is elsewhere, its
   first step is the arm's route there from where it is commanded (``station.arm_route``), checked in
@@ -50,6 +50,7 @@ from station.runner._states import (
     Progress,
     RunnerState,
     SessionError,
+    SessionState,
     software_info,
 )
 from station.runner._store import Grabbed, StorePipeline, stored_captures
@@ -71,6 +72,7 @@ __all__ = [
     "SessionControl",
     "SessionError",
     "SessionRunner",
+    "SessionState",
     "SessionSteps",
     "StepRun",
     "StorePipeline",

@@ -10,8 +10,8 @@ from station.runner._journal import Journal
 from station.runner._states import (
     FINAL_STATES,
     AbortRequestedError,
-    RunnerState,
     SessionError,
+    SessionState,
     StopRequestedError,
 )
 
@@ -37,17 +37,17 @@ class SessionControl:
             if self.journal.state in FINAL_STATES or self.stopping or self.aborting:
                 raise SessionError(f"cannot pause a session that is {self.journal.state}")
             self.pausing = True
-            self.journal.set_state(RunnerState.PAUSING, only_from={RunnerState.RUNNING}, wait=False)
+            self.journal.set_state(SessionState.PAUSING, only_from={SessionState.RUNNING}, wait=False)
             self._cond.notify_all()
 
     def resume(self) -> None:
         """Continue after a pause."""
         with self._lock:
             state = self.journal.state
-            if state not in (RunnerState.PAUSED, RunnerState.PAUSING):
+            if state not in (SessionState.PAUSED, SessionState.PAUSING):
                 raise SessionError(f"cannot resume a session that is {state}; only a paused one")
             self.pausing = False
-            self.journal.set_state(RunnerState.RUNNING, only_from={RunnerState.PAUSING}, wait=False)
+            self.journal.set_state(SessionState.RUNNING, only_from={SessionState.PAUSING}, wait=False)
             self._cond.notify_all()
 
     def stop(self) -> None:
@@ -56,7 +56,7 @@ class SessionControl:
             if self.journal.state in FINAL_STATES or self.aborting:
                 return
             self.stopping = True
-            self.journal.set_state_unless_ended(RunnerState.STOPPING, wait=False)
+            self.journal.set_state_unless_ended(SessionState.STOPPING, wait=False)
             self._cond.notify_all()
 
     def abort(self) -> bool:
@@ -66,7 +66,7 @@ class SessionControl:
             if self.journal.state in FINAL_STATES or self.aborting:
                 return False
             self.aborting = True
-            self.journal.set_state_unless_ended(RunnerState.ABORTING, wait=False)
+            self.journal.set_state_unless_ended(SessionState.ABORTING, wait=False)
             self._cond.notify_all()
             return True
 
@@ -84,7 +84,9 @@ class SessionControl:
         with self._lock:
             if self.aborting:
                 return False
-            self.journal.set_state(RunnerState.STOPPING if self.stopping else RunnerState.RUNNING, wait=False)
+            self.journal.set_state(
+                SessionState.STOPPING if self.stopping else SessionState.RUNNING, wait=False
+            )
             return True
 
     def safe_point(self, drain: Callable[[], None]) -> None:
@@ -96,11 +98,11 @@ class SessionControl:
             self._raise_if_asked()
             if not self.pausing:
                 return
-            self.journal.set_state(RunnerState.PAUSED, wait=False)
+            self.journal.set_state(SessionState.PAUSED, wait=False)
             while self.pausing and not (self.stopping or self.aborting):
                 self._cond.wait(0.5)
             self._raise_if_asked()
-            self.journal.set_state(RunnerState.RUNNING, wait=False)
+            self.journal.set_state(SessionState.RUNNING, wait=False)
 
     def _raise_if_asked(self) -> None:
         if self.aborting:

@@ -24,12 +24,12 @@ from typing import Any
 
 from station.prompts import PromptEvent
 from station.record import EventRow, Record, RecordError
-from station.runner._states import ACTIVE_STATES, FINAL_STATES, RunnerState
+from station.runner._states import ACTIVE_STATES, FINAL_STATES, SessionState
 
 log = logging.getLogger("station.runner")
 
 Listener = Callable[[EventRow], None]
-_RUNNING = frozenset({RunnerState.RUNNING, RunnerState.PAUSING})
+_RUNNING = frozenset({SessionState.RUNNING, SessionState.PAUSING})
 
 
 class Journal:
@@ -46,7 +46,7 @@ class Journal:
     def __init__(self, record: Record, session_id: str | None = None) -> None:
         self.record = record
         self.session_id = session_id
-        self._state = RunnerState.IDLE
+        self._state = SessionState.IDLE
         self._write = threading.Lock()  # the record's writes and the queue's order: short, never a listener
         self._listeners: list[Listener] = []
         self._queue: deque[tuple[int, EventRow]] = deque()
@@ -56,7 +56,7 @@ class Journal:
         self._cond = threading.Condition(threading.Lock())  # the queue's delivery, apart from the writes
 
     @property
-    def state(self) -> RunnerState:
+    def state(self) -> SessionState:
         return self._state
 
     def attach(self, session_id: str) -> None:
@@ -85,9 +85,9 @@ class Journal:
 
     def set_state(
         self,
-        state: RunnerState,
+        state: SessionState,
         *,
-        only_from: Collection[RunnerState] | None = None,
+        only_from: Collection[SessionState] | None = None,
         error: str | None = None,
         wait: bool = True,
     ) -> bool:
@@ -117,7 +117,7 @@ class Journal:
             self._deliver(n, wait=wait)
         return True
 
-    def set_state_unless_ended(self, state: RunnerState, *, wait: bool = True) -> bool:
+    def set_state_unless_ended(self, state: SessionState, *, wait: bool = True) -> bool:
         """``state`` unless the session has not started or has already ended."""
         return self.set_state(state, only_from=ACTIVE_STATES, wait=wait)
 
@@ -184,7 +184,7 @@ def record_prompt(journal: Journal, event: PromptEvent, *, paused: Callable[[], 
     (``prompt_answered``, then the session back to running, or pausing when a pause was asked meanwhile)."""
     p = event.prompt
     if event.kind == "opened":
-        journal.set_state(RunnerState.AWAITING_OPERATOR, only_from=_RUNNING, wait=wait)
+        journal.set_state(SessionState.AWAITING_OPERATOR, only_from=_RUNNING, wait=wait)
         fields = [f.__dict__ for f in p.fields]
         journal.emit(
             "prompt_raised", {"id": p.id, "kind": p.kind, "message": p.message, "fields": fields}, wait=wait
@@ -202,8 +202,8 @@ def record_prompt(journal: Journal, event: PromptEvent, *, paused: Callable[[], 
         },
         wait=wait,
     )
-    back = RunnerState.PAUSING if paused() else RunnerState.RUNNING
-    journal.set_state(back, only_from={RunnerState.AWAITING_OPERATOR}, wait=False)
+    back = SessionState.PAUSING if paused() else SessionState.RUNNING
+    journal.set_state(back, only_from={SessionState.AWAITING_OPERATOR}, wait=False)
 
 
 def reconcile(record: Record) -> list[str]:
@@ -212,7 +212,7 @@ def reconcile(record: Record) -> list[str]:
     marked = []
     for s in record.list_sessions():
         if s.state in ACTIVE_STATES:
-            record.set_state(s.id, RunnerState.INTERRUPTED, error=s.error)
-            record.add_event(s.id, "state", {"state": RunnerState.INTERRUPTED, "was": s.state})
+            record.set_state(s.id, SessionState.INTERRUPTED, error=s.error)
+            record.add_event(s.id, "state", {"state": SessionState.INTERRUPTED, "was": s.state})
             marked.append(s.id)
     return marked

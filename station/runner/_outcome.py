@@ -12,7 +12,7 @@ from station import scale_calibration
 from station.plans import Plan, PlanContext, PlanError
 from station.record import Record, RecordError
 from station.runner._journal import Journal
-from station.runner._states import RunnerState
+from station.runner._states import SessionState
 from station.runner._store import stored_captures
 
 
@@ -53,7 +53,7 @@ def captures_of(plan: Plan, params: BaseModel, record: Record, sid: str) -> list
 def write_scale_calibration(plan: Plan, record: Record, results: Any, journal: Journal) -> None:
     """A validation that passed every gate: its groove-width estimate becomes the station's scale
     calibration (the one it replaces stays in the history, ``station.scale_calibration``)."""
-    cal = scale_calibration.from_validation(plan.name, RunnerState.SUCCEEDED, results)
+    cal = scale_calibration.from_validation(plan.name, SessionState.SUCCEEDED, results)
     if cal is None:
         return
     try:

@@ -32,8 +32,8 @@ from station.runner._states import (
     PreflightError,
     Progress,
     ProgressCounter,
-    RunnerState,
     SessionError,
+    SessionState,
     StopRequestedError,
 )
 from station.runner._store import StorePipeline
@@ -41,7 +41,7 @@ from station.vision import MeasureParams
 
 log = logging.getLogger("station.runner")
 
-_RUNNING = frozenset({RunnerState.RUNNING, RunnerState.PAUSING})
+_RUNNING = frozenset({SessionState.RUNNING, SessionState.PAUSING})
 
 
 class SessionRunner:
@@ -98,6 +98,7 @@ class SessionRunner:
         self._resume = resume_session
         self.counter = ProgressCounter()
         self._run = 0  # how many times this session was resumed: captures of a resumed run carry it
+        self._aborted_as = SessionState.ABORTED  # or interrupted (``abort(resumable=True)``)
         self._thread: threading.Thread | None = None  # the one running the session (``run``)
         self.journal = Journal(record, resume_session.id if resume_session else None)
         self.control = SessionControl(self.journal)
@@ -118,7 +119,7 @@ class SessionRunner:
         return self.journal.session_id
 
     @property
-    def state(self) -> RunnerState:
+    def state(self) -> SessionState:
         return self.journal.state
 
     def subscribe(self, listener: Callable[[EventRow], None]) -> Callable[[], None]:
@@ -140,14 +141,17 @@ class SessionRunner:
         """Finish the step, return the arm to the reference pose, close the devices: ``stopped``."""
         self.control.stop()
 
-    def abort(self, reason: str = "aborted by the operator") -> None:
-        """Stop the robot now (latched), cancel the open prompt, move nothing more: ``aborted``.
+    def abort(self, reason: str = "aborted by the operator", *, resumable: bool = False) -> None:
+        """Stop the robot now (latched), cancel the open prompt, move nothing more: ``aborted``, or
+        ``interrupted`` when ``resumable`` (the service shutting down: the session is to be resumed).
 
         Nothing here waits for a listener of the runner's events: the state is written, the stop sent,
         the prompt cancelled, whatever the listeners are doing.
         """
         if not self.control.abort():
             return
+        if resumable:
+            self._aborted_as = SessionState.INTERRUPTED
         self.error = self.error or reason
         self.hold.stop_now()
         self.hold.cancel_prompt(reason)
@@ -183,7 +187,7 @@ class SessionRunner:
         except Exception:
             log.exception("session runner ended with an error")
 
-    def run(self) -> RunnerState:
+    def run(self) -> SessionState:
         """Run the session to its end; returns the final state once every listener has heard it. Raises
         ``SessionLockError`` when another session holds the station (nothing is created or moved then)."""
         data_dir = Path(self.record.data_dir)
@@ -198,7 +202,7 @@ class SessionRunner:
                 final = self._run_session(sid)
             except BaseException:  # Ctrl-C, SystemExit, an error before it ran: recorded (the arm stopped)
                 held.release()
-                self._finish(RunnerState.ABORTED if self.control.aborting else RunnerState.FAILED)
+                self._finish(SessionState.ABORTED if self.control.aborting else SessionState.FAILED)
                 raise
             finally:
                 if unsubscribe is not None:
@@ -209,7 +213,7 @@ class SessionRunner:
             self._finish(final)
             return final
 
-    def _run_session(self, sid: str) -> RunnerState:
+    def _run_session(self, sid: str) -> SessionState:
         ctx = plan_context(
             self.plan,
             sid,
@@ -220,9 +224,9 @@ class SessionRunner:
             compute=self.compute,
             cancelled=self.control.aborted,
         )
-        final = RunnerState.FAILED
+        final = SessionState.FAILED
         if not self.control.begin():
-            return RunnerState.ABORTED
+            return SessionState.ABORTED
         try:
             with contextlib.ExitStack() as stack:
                 stack.callback(lambda: self.store.close(self.error))
@@ -240,35 +244,35 @@ class SessionRunner:
                         self._check_progress(sid, ctx)
                     self.store.drain()
                     self.store.check()
-                    final = RunnerState.SUCCEEDED
+                    final = SessionState.SUCCEEDED
                 except StopRequestedError:
                     if "robot" in self.plan.needs:
                         self.hold.return_to_reference()
                     self.store.drain()
                     self.store.check()
-                    final = RunnerState.STOPPED
+                    final = SessionState.STOPPED
                 finally:
-                    if final is RunnerState.STOPPED:
-                        self.journal.set_state_unless_ended(RunnerState.STOPPING)
-            self._analyse(ctx, keep_going=final is not RunnerState.SUCCEEDED)
-            if final is RunnerState.SUCCEEDED and self.results is None:
-                final = RunnerState.FAILED
+                    if final is SessionState.STOPPED:
+                        self.journal.set_state_unless_ended(SessionState.STOPPING)
+            self._analyse(ctx, keep_going=final is not SessionState.SUCCEEDED)
+            if final is SessionState.SUCCEEDED and self.results is None:
+                final = SessionState.FAILED
             gates = verdict(self.results)
-            if final is RunnerState.SUCCEEDED and gates is not None:
+            if final is SessionState.SUCCEEDED and gates is not None:
                 # a result that fails a gate is kept and shown, marked failed: never a success
-                final = RunnerState.FAILED
+                final = SessionState.FAILED
                 self.error = gates
                 self.journal.emit("error", {"message": gates, "type": "GateError"})
         except (AbortRequestedError, MotionStoppedError, OperatorCancelledError) as exc:
             if self.control.aborting:
-                final = RunnerState.ABORTED
+                final = SessionState.ABORTED
                 self.hold.reread_position("abort")
             else:
-                final = RunnerState.FAILED
+                final = SessionState.FAILED
                 self._fail(exc)
             self._analyse(ctx, keep_going=True)
         except (DeviceError, RecordError, PlanError, SessionError, ComputeError, OSError, ValueError) as exc:
-            final = RunnerState.ABORTED if self.control.aborting else RunnerState.FAILED
+            final = SessionState.ABORTED if self.control.aborting else SessionState.FAILED
             self._fail(exc)
             self._analyse(ctx, keep_going=True)
         except BaseException as exc:  # KeyboardInterrupt, SystemExit: stop the arm; run() records it
@@ -276,16 +280,18 @@ class SessionRunner:
             raise
         return final
 
-    def _finish(self, final: RunnerState) -> None:
+    def _finish(self, final: SessionState) -> None:
         sid = self.session_id
         assert sid is not None
         if self.results is not None:
             self.record.set_results(sid, self.results)
-        if final is RunnerState.SUCCEEDED:
+        if final is SessionState.SUCCEEDED:
             write_scale_calibration(
                 self.plan, self.record, self.results, self.journal
             )  # before the state says succeeded: a client then finds it
-        error = None if final is RunnerState.SUCCEEDED else self.error
+        if final is SessionState.ABORTED:
+            final = self._aborted_as
+        error = None if final is SessionState.SUCCEEDED else self.error
         self.journal.set_state(final, error=error)
         self.journal.flush()  # every listener has heard the end before run() returns
         log.info("session %s %s", sid, final)

@@ -1,6 +1,6 @@
 """A session's states, the runner's errors and progress, and what a session records of the software.
 
-States (``RunnerState``)::
+States (``SessionState``)::
 
     idle -> running <-> awaiting_operator
             running -> pausing -> paused -> running
@@ -32,7 +32,9 @@ EARLY_FAILURE_CAPTURES = 3
 """A session whose first this-many captures all fail to measure stops: something is misconfigured."""
 
 
-class RunnerState(enum.StrEnum):
+class SessionState(enum.StrEnum):
+    """A session's state; the string values are the contract (the record, the CLI's ``--json``, the API)."""
+
     IDLE = "idle"
     RUNNING = "running"
     PAUSING = "pausing"
@@ -47,23 +49,26 @@ class RunnerState(enum.StrEnum):
     INTERRUPTED = "interrupted"
 
 
+RunnerState = SessionState
+"""The former name, kept for code written before the rename (the other branches' tests import it)."""
+
 FINAL_STATES = frozenset(
     {
-        RunnerState.STOPPED,
-        RunnerState.ABORTED,
-        RunnerState.FAILED,
-        RunnerState.SUCCEEDED,
-        RunnerState.INTERRUPTED,
+        SessionState.STOPPED,
+        SessionState.ABORTED,
+        SessionState.FAILED,
+        SessionState.SUCCEEDED,
+        SessionState.INTERRUPTED,
     }
 )
 ACTIVE_STATES = frozenset(
     {
-        RunnerState.RUNNING,
-        RunnerState.PAUSING,
-        RunnerState.PAUSED,
-        RunnerState.AWAITING_OPERATOR,
-        RunnerState.STOPPING,
-        RunnerState.ABORTING,
+        SessionState.RUNNING,
+        SessionState.PAUSING,
+        SessionState.PAUSED,
+        SessionState.AWAITING_OPERATOR,
+        SessionState.STOPPING,
+        SessionState.ABORTING,
     }
 )
 

@@ -10,8 +10,8 @@ from typing import Any
 
 from station.runner import (
     Progress,
-    RunnerState,
     SessionError,
+    SessionState,
 )
 
 log = logging.getLogger(__name__)
@@ -72,7 +72,7 @@ class RunnerStatus:
 
     session_id: str
     kind: str
-    state: RunnerState
+    state: SessionState
     progress: Progress
     error: str | None = None
     """Set when the session failed in a way its runner could not record (the record unreachable, an

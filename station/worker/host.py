@@ -12,8 +12,7 @@ from typing import Any
 
 from station.arm_route import max_step_of
 from station.compute import ComputeSpec, open_backend
-from station.kinds import get_plan
-from station.plans import parse_params
+from station.plans import Plan
 from station.prompts import PromptAnswer, PromptBroker, PromptEvent
 from station.record import (
     EventRow,
@@ -27,11 +26,11 @@ from station.runner import (
     FINAL_STATES,
     PreflightError,
     Progress,
-    RunnerState,
     SessionError,
     SessionRunner,
+    SessionState,
 )
-from station.vision import MeasureParams
+from station.session import SessionStart
 from station.worker._arm import acknowledge_arm, arm_to_reference, read_arm
 from station.worker._common import (
     DEVICE_NAMES,
@@ -158,51 +157,31 @@ class SessionHost:
 
     def rpc_create(self, kind: str, params: Mapping[str, Any], assignments: Mapping[str, Any]) -> str:
         """Create and start a session; its id once pre-flight has passed (PreflightError otherwise)."""
-        from station.session import session_measure_params
 
-        plan = get_plan(kind)  # PlanError naming the plans (the service checked the kind first)
-        plan_params = parse_params(plan, dict(params))
-        if plan.needs and self.devices is None:
-            raise NotAvailableError(
-                f"a {kind} session drives hardware, and this service has no station: start it with --sim "
-                "or --config FILE"
-            )
-        measure_params, cal_doc = session_measure_params(
-            self.record, kind, dict(params), self.config, assignments
-        )
-        return self._start(
-            SessionRunner(
-                self.record,
-                plan,
-                plan_params,
-                devices=self.devices if plan.needs else None,
-                measure_params=measure_params,
-                scale_calibration=cal_doc,
-                station=self._station_name(),
-                compute=self.compute,
-            )
-        )
+        def station_given(plan: Plan) -> None:
+            if plan.needs and self.devices is None:
+                raise NotAvailableError(
+                    f"a {kind} session drives hardware, and this service has no station: start it with "
+                    "--sim or --config FILE"
+                )
+
+        # PlanError naming the plans (the service checked the kind first), or the field
+        start = SessionStart.new(self.record, kind, params, self.config, assignments, check=station_given)
+        return self._start(self._runner_of(start))
 
     def rpc_resume(self, session_id: str) -> str:
         """Continue an interrupted, stopped, failed or aborted session of the record."""
-        row = self.record.get_session(session_id)
-        plan = get_plan(row.kind)
-        if plan.needs and self.devices is None:
+        start = SessionStart.resume(self.record, session_id)
+        if start.plan.needs and self.devices is None:
+            assert start.previous is not None
             raise NotAvailableError(
-                f"session {row.id} drives hardware; start the service with --sim or --config"
+                f"session {start.previous.id} drives hardware; start the service with --sim or --config"
             )
-        return self._start(
-            SessionRunner(
-                self.record,
-                plan,
-                parse_params(plan, dict(row.params.get("plan", {}))),
-                devices=self.devices if plan.needs else None,
-                measure_params=MeasureParams.model_validate(row.params.get("measure", {})),
-                scale_calibration=row.params.get("scale_calibration"),
-                resume_session=row,
-                station=self._station_name(),
-                compute=self.compute,
-            )
+        return self._start(self._runner_of(start))
+
+    def _runner_of(self, start: SessionStart) -> SessionRunner:
+        return start.runner(
+            self.record, devices=self.devices, station=self._station_name(), compute=self.compute
         )
 
     def rpc_act(self, session_id: str, action: str) -> bool:
@@ -305,7 +284,7 @@ class SessionHost:
         status = RunnerStatus(
             sid,
             runner.plan.name,
-            RunnerState.FAILED,
+            SessionState.FAILED,
             Progress.model_construct(done=done.done, total=done.total, eta_s=None),
             error=str(exc) or type(exc).__name__,
         )
@@ -324,9 +303,9 @@ class SessionHost:
                 row = self.record.get_session(sid)
                 if row.state in FINAL_STATES:
                     return
-                self.record.set_state(sid, RunnerState.FAILED, error=status.error)
+                self.record.set_state(sid, SessionState.FAILED, error=status.error)
                 event = self.record.add_event(
-                    sid, "state", {"state": str(RunnerState.FAILED), "was": row.state}
+                    sid, "state", {"state": str(SessionState.FAILED), "was": row.state}
                 )
             except RecordUnavailableError:
                 self._closing.wait(RECORD_RETRY_S)
@@ -358,7 +337,7 @@ class SessionHost:
         it lets go of the devices and the station lock, and a read of a device right then would find the
         station busy (an aborting session's record may already say ``aborted``)."""
         thread, runner = self._thread, self._runner
-        ending = (*FINAL_STATES, RunnerState.ABORTING)
+        ending = (*FINAL_STATES, SessionState.ABORTING)
         if thread is not None and runner is not None and runner.state in ending:
             thread.join(30)
 
@@ -478,16 +457,17 @@ class SessionHost:
         if runner is not None and thread is not None and thread.is_alive():
             sid = runner.session_id
             log.warning("%s: session %s is interrupted (the robot is stopped)", why, sid)
-            runner.abort(why)
+            runner.abort(f"{why} during the session", resumable=True)
             thread.join(timeout_s)
-            if sid is not None and not thread.is_alive():
+            if sid is not None and not thread.is_alive() and runner.state not in FINAL_STATES:
+                # its runner could not record its end (the record gone a moment): interrupted all the same
                 with contextlib.suppress(RecordError):
-                    self.record.set_state(sid, RunnerState.INTERRUPTED, error=f"{why} during the session")
+                    self.record.set_state(sid, SessionState.INTERRUPTED, error=f"{why} during the session")
                     event = self.record.add_event(
-                        sid, "state", {"state": str(RunnerState.INTERRUPTED), "was": str(runner.state)}
+                        sid, "state", {"state": str(SessionState.INTERRUPTED), "was": str(runner.state)}
                     )
                     progress = runner.progress()
-                    status = RunnerStatus(sid, runner.plan.name, RunnerState.INTERRUPTED, progress)
+                    status = RunnerStatus(sid, runner.plan.name, SessionState.INTERRUPTED, progress)
                     with contextlib.suppress(OSError, ValueError):
                         self._send(("event", event, status))
         if self.devices is not None:

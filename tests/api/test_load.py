@@ -28,13 +28,13 @@ def test_fifty_clients_while_a_session_runs(
     caplog.set_level(logging.WARNING)
     service = served.service
     subscriptions: list[Any] = []
-    real_subscribe = service.subscribe
+    real_subscribe = service.reads.subscribe
 
     def counting_subscribe(listener: Any) -> Any:
         subscriptions.append(listener)
         return real_subscribe(listener)
 
-    monkeypatch.setattr(service, "subscribe", counting_subscribe)
+    monkeypatch.setattr(service.reads, "subscribe", counting_subscribe)
     row_reads: list[str] = []
     real_get_session = service.record.get_session
 

@@ -9,7 +9,7 @@ from typing import Any
 from station.kinds import get_plan
 from station.plans import parse_params
 from station.record import EventRow, Record
-from station.runner import RunnerState, SessionRunner
+from station.runner import SessionRunner, SessionState
 from station.testing import FakeStation
 from tests.sessions.conftest import EventLog, sid_of
 
@@ -60,14 +60,14 @@ def test_abort_returns_while_a_listener_blocks(record: Record, fake: FakeStation
     try:
         assert call_in_thread(r.abort), "abort waited for a listener"
         # abort's effects do not wait for the listener either: the state is written, the arm stopped
-        assert r.state is RunnerState.ABORTING
+        assert r.state is SessionState.ABORTING
         assert record.get_session(sid_of(r)).state == "aborting"
         fake.robot.assert_called("stop")
     finally:
         release.set()
     thread.join(60)
     assert not thread.is_alive()
-    assert r.state is RunnerState.ABORTED
+    assert r.state is SessionState.ABORTED
     assert record.get_session(sid_of(r)).state == "aborted"
     assert log.states()[-2:] == ["aborting", "aborted"]
     # every event was delivered once, in the order it was recorded
@@ -86,7 +86,7 @@ def test_a_listener_calling_back_from_another_thread_does_not_deadlock(
             answered.append(call_in_thread(lambda: control(r)))
 
     r.subscribe(calls_back)
-    assert r.run() is RunnerState.SUCCEEDED
+    assert r.run() is SessionState.SUCCEEDED
     assert answered == [True], "a call into the runner waited for the listener that waited for it"
     states = log.states()
     assert states[0] == "running"
@@ -98,6 +98,6 @@ def test_a_listener_calling_back_from_another_thread_does_not_deadlock(
 def test_a_listener_may_control_the_runner_from_its_own_thread(record: Record, fake: FakeStation) -> None:
     r, log = repeatability(record, fake)
     r.subscribe(lambda e: r.stop() if e.type == "step_started" and e.data["index"] == 1 else None)
-    assert r.run() is RunnerState.STOPPED
+    assert r.run() is SessionState.STOPPED
     assert [s.state for s in record.steps(sid_of(r))] == ["done", "done"]
     assert log.states()[-2:] == ["stopping", "stopped"]
