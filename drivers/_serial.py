@@ -24,6 +24,9 @@ try:  # pyserial's POSIX flush() raises termios.error, which is not an OSError
 except ImportError:  # pragma: no cover - Windows
     _TermiosError = OSError  # type: ignore[misc,assignment]
 
+LINE_SETTINGS = ("baudrate", "bytesize", "parity", "stopbits", "xonxoff", "rtscts")
+"""pyserial's line settings a driver's link settings may carry (``SerialPort.open_with``)."""
+
 LINK_ERRORS: tuple[type[Exception], ...] = (serial.SerialException, OSError, _TermiosError)
 """What pyserial raises when a port is lost mid-use (unplugged, closed, a pty's other end gone)."""
 
@@ -91,6 +94,12 @@ class SerialPort:
             self._port_arg, self.name, timeout_s=timeout_s, write_timeout_s=write_timeout_s, **line
         )
 
+    def open_with(self, settings: Any) -> None:
+        """Open with a driver's link settings: ``poll_s`` (the read timeout), ``reply_timeout_s`` (the
+        write timeout) and those of ``LINE_SETTINGS`` it has."""
+        line = {k: getattr(settings, k) for k in LINE_SETTINGS if hasattr(settings, k)}
+        self.open(timeout_s=settings.poll_s, write_timeout_s=settings.reply_timeout_s, **line)
+
     def close(self) -> None:
         """Close the port; safe to call twice (a failure to close is only logged: the port is gone)."""
         if self._serial is None:
@@ -109,4 +118,4 @@ class SerialPort:
         return self._serial
 
 
-__all__ = ["LINK_ERRORS", "SerialPort", "open_port"]
+__all__ = ["LINE_SETTINGS", "LINK_ERRORS", "SerialPort", "open_port"]

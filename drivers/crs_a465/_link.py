@@ -80,16 +80,7 @@ class SerialTransport:
         if self.is_open:
             return
         s = self.settings
-        self._link.open(
-            timeout_s=s.poll_s,
-            write_timeout_s=s.reply_timeout_s,
-            baudrate=s.baudrate,
-            bytesize=s.bytesize,
-            parity=s.parity,
-            stopbits=s.stopbits,
-            xonxoff=s.xonxoff,
-            rtscts=s.rtscts,
-        )
+        self._link.open_with(s)
         log.debug("opened %s (%s %d%s%s)", self.name, s.baudrate, s.bytesize, s.parity, s.stopbits)
 
     def close(self) -> None:

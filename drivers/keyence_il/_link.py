@@ -51,15 +51,7 @@ class LineLink:
 
     def open(self) -> None:
         """Open the port exclusively (a name, pty path or pyserial URL); a second call does nothing."""
-        s = self.settings
-        self._link.open(
-            timeout_s=s.poll_s,
-            write_timeout_s=s.reply_timeout_s,
-            baudrate=s.baudrate,
-            bytesize=s.bytesize,
-            parity=s.parity,
-            stopbits=s.stopbits,
-        )
+        self._link.open_with(self.settings)
 
     def close(self) -> None:
         """Close the port; safe to call twice."""

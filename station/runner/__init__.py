@@ -34,7 +34,7 @@ session's hold on the devices), ``_resume`` (the session created, its steps on a
 context), ``_outcome`` (the analysis and what a passed validation leaves).
 """
 
-from station.runner._actions import HANDLERS, ActionExecutor, Handler, StepRun, require, step_moves
+from station.runner._actions import HANDLERS, ActionExecutor, Handler, require, step_moves
 from station.runner._control import SessionControl
 from station.runner._journal import Journal, reconcile
 from station.runner._preflight import find_problems, route_to_reference
@@ -53,7 +53,7 @@ from station.runner._states import (
     SessionState,
     software_info,
 )
-from station.runner._store import Grabbed, StorePipeline, stored_captures
+from station.runner._store import Grabbed, StepRun, StorePipeline, stored_captures
 
 __all__ = [
     "ACTIVE_STATES",

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from station.config import StationDevices
@@ -37,20 +37,8 @@ from station.plans import (
 )
 from station.runner._journal import Journal
 from station.runner._states import AbortRequestedError, SessionError
-from station.runner._store import Grabbed
+from station.runner._store import Grabbed, StepRun
 from station.vision import MeasurementError, MeasureParams, measure
-
-
-@dataclass
-class StepRun:
-    """One attempt of one step: what it grabbed (stored even when the step fails), the data its actions
-    added, where a ``MoveOffset``'s offsets start, and the next frame's index."""
-
-    step: Step
-    next_frame: int
-    grabbed: list[Grabbed] = field(default_factory=list)
-    data: dict[str, Any] = field(default_factory=dict)
-    offset_base: tuple[float, ...] | None = None
 
 
 @dataclass

@@ -19,7 +19,7 @@ from station.plans import Plan, PlanContext, PlanError, Step
 from station.plans._gates import verdict
 from station.prompts import PromptEvent
 from station.record import EventRow, Record, RecordError, SessionRow, station_lock
-from station.runner._actions import ActionExecutor, StepRun, step_moves
+from station.runner._actions import ActionExecutor, step_moves
 from station.runner._control import SessionControl
 from station.runner._devices import SessionDevices
 from station.runner._journal import Journal, reconcile, record_prompt
@@ -36,7 +36,7 @@ from station.runner._states import (
     SessionState,
     StopRequestedError,
 )
-from station.runner._store import StorePipeline
+from station.runner._store import StepRun, StorePipeline
 from station.vision import MeasureParams
 
 log = logging.getLogger("station.runner")
@@ -358,7 +358,7 @@ class SessionRunner:
             if earlier
             else 0
         )
-        run = StepRun(step, first)
+        run = StepRun(step, first, t0)
         executor = ActionExecutor(
             self.devices,
             ctx,
@@ -374,12 +374,12 @@ class SessionRunner:
             executor.run(run, before_action=self.store.check)
         except BaseException as exc:
             # what was grabbed before the failure is still stored (nothing captured is lost)
-            self.store.submit(sid, step, run.grabbed, run.data, t0, failed=str(exc) or type(exc).__name__)
+            self.store.submit(sid, run, failed=str(exc) or type(exc).__name__)
             self.store.drain()
             if isinstance(exc, DeviceError) and step_moves(step):
                 self.hold.reread_position("motion error")
             raise
-        self.store.submit(sid, step, run.grabbed, run.data, t0)
+        self.store.submit(sid, run)
 
     def _run_meta(self) -> dict[str, int]:
         """``{"run": n}`` for the n-th resumed run of a session (nothing for its first: unchanged)."""

@@ -36,6 +36,19 @@ class Grabbed:
 
 
 @dataclass
+class StepRun:
+    """One attempt of one step: what it grabbed (stored even when the step fails), the data its actions
+    added, where a ``MoveOffset``'s offsets start, and the next frame's index."""
+
+    step: Step
+    next_frame: int
+    started_s: float = 0.0  # time.monotonic() when the step began (its duration feeds the ETA)
+    grabbed: list[Grabbed] = field(default_factory=list)
+    data: dict[str, Any] = field(default_factory=dict)
+    offset_base: tuple[float, ...] | None = None
+
+
+@dataclass
 class StorePipeline:
     """Stores and measures what each step grabbed, then finishes the step in the record.
 
@@ -67,20 +80,12 @@ class StorePipeline:
             if exc is not None and str(exc) != error:
                 log.error("storing a capture failed: %s", exc)
 
-    def submit(
-        self,
-        sid: str,
-        step: Step,
-        grabbed: list[Grabbed],
-        data: dict[str, Any],
-        t0: float,
-        failed: str | None = None,
-    ) -> None:
+    def submit(self, sid: str, run: StepRun, failed: str | None = None) -> None:
         """Queue the step's storing; at most one step stored behind the arm (memory stays flat, errors
         surface within a step)."""
 
         def task() -> None:
-            self._store_step(sid, step, grabbed, data, t0, failed)
+            self._store_step(sid, run, failed)
 
         if self._pool is None:
             task()
@@ -104,18 +109,11 @@ class StorePipeline:
         for f in list(self._futures):
             f.exception()
 
-    def _store_step(
-        self,
-        sid: str,
-        step: Step,
-        grabbed: list[Grabbed],
-        data: dict[str, Any],
-        t0: float,
-        failed: str | None,
-    ) -> None:
+    def _store_step(self, sid: str, run: StepRun, failed: str | None) -> None:
         """In the store thread: store and measure the step's frames, then finish the step."""
+        step, data = run.step, run.data
         try:
-            ids = [cid for g in grabbed for cid in self._store(sid, step, g)]
+            ids = [cid for g in run.grabbed for cid in self._store(sid, step, g)]
         except BaseException as exc:
             self.record.finish_step(sid, step.index, data={**data, "error": str(exc)}, state="failed")
             raise
@@ -125,7 +123,7 @@ class StorePipeline:
             self.record.finish_step(sid, step.index, data={**data, "error": failed}, state="failed")
             return
         self.record.finish_step(sid, step.index, data=data)
-        progress = self.on_step_done(step, time.monotonic() - t0)
+        progress = self.on_step_done(step, time.monotonic() - run.started_s)
         self.journal.emit("step_finished", {"index": step.index, "name": step.name, "progress": progress})
         if self.captures >= EARLY_FAILURE_CAPTURES and self.measured_ok == 0:
             raise SessionError(
