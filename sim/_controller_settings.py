@@ -12,9 +12,8 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from sim._controller_faults import Fault, parse_fault
 from sim.arm_errors import DEFAULT_ARM_ERRORS
+from station.devices import Joints6
 from station.kinematics import A465_JOINT_LIMITS_DEG
-
-Six = tuple[float, float, float, float, float, float]
 
 
 def _six(value: Any) -> Any:
@@ -43,27 +42,34 @@ class TwinSettings(BaseModel):
     power: bool = True
     homed: bool = True
     speed_pct: int = Field(50, ge=1, le=100)
-    max_speed_deg_s: Six = (180.0, 180.0, 180.0, 172.0, 172.0, 172.0)
-    accel_deg_s2: Six = (720.0, 720.0, 720.0, 1430.0, 1430.0, 1430.0)
-    counts_per_deg: Six = (400000 / 360, 400000 / 360, 400000 / 360, 200000 / 360, 200000 / 360, 200000 / 360)
+    max_speed_deg_s: Joints6 = (180.0, 180.0, 180.0, 172.0, 172.0, 172.0)
+    accel_deg_s2: Joints6 = (720.0, 720.0, 720.0, 1430.0, 1430.0, 1430.0)
+    counts_per_deg: Joints6 = (
+        400000 / 360,
+        400000 / 360,
+        400000 / 360,
+        200000 / 360,
+        200000 / 360,
+        200000 / 360,
+    )
     # the joint part of sim.arm_errors' model fitted to the seed's Table 2 (the Cartesian part is the world's)
-    repeat_sigma_deg: Six = Field(
+    repeat_sigma_deg: Joints6 = Field(
         DEFAULT_ARM_ERRORS.joints.sigma_deg, description="random part of the attained error (1 sigma)"
     )
-    systematic_deg: Six = Field((0.0,) * 6, description="constant part of the attained error")
-    backlash_deg: Six = Field(
+    systematic_deg: Joints6 = Field((0.0,) * 6, description="constant part of the attained error")
+    backlash_deg: Joints6 = Field(
         DEFAULT_ARM_ERRORS.joints.backlash_deg, description="attained error signed by the approach direction"
     )
-    settle_deg: Six = Field(
+    settle_deg: Joints6 = Field(
         DEFAULT_ARM_ERRORS.joints.settle_deg, description="servo residual at the motion's end (1 sigma)"
     )
     settle_time_s: float = Field(
         DEFAULT_ARM_ERRORS.joints.settle_time_s, gt=0, description="the residual's decay time (model s)"
     )
     joint_limits_deg: tuple[tuple[float, float], ...] = A465_JOINT_LIMITS_DEG
-    home_pose_deg: Six = (0.0,) * 6
-    ready_pose_deg: Six = (0.0, 0.0, 90.0, 0.0, 90.0, 0.0)
-    start_pose_deg: Six | None = Field(None, description="where the arm starts; None: the ready pose")
+    home_pose_deg: Joints6 = (0.0,) * 6
+    ready_pose_deg: Joints6 = (0.0, 0.0, 90.0, 0.0, 90.0, 0.0)
+    start_pose_deg: Joints6 | None = Field(None, description="where the arm starts; None: the ready pose")
     homing_extra_s: float = Field(2.0, ge=0, description="index search time added to home")
     link: str | None = Field(
         None, description="a symlink kept pointing at the current pty ('auto': in a temporary directory)"
@@ -89,4 +95,4 @@ class TwinSettings(BaseModel):
         return value
 
 
-__all__ = ["Six", "TwinSettings"]
+__all__ = ["TwinSettings"]

@@ -82,8 +82,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from station.devices import Joints6
+
 FloatArray = npt.NDArray[np.float64]
-Six = tuple[float, float, float, float, float, float]
 JOINTS = 6
 
 #: The seed's Table 2 (mm): RP per joint moved alone.
@@ -108,9 +109,9 @@ def _check_six(name: str, values: tuple[float, ...]) -> None:
 class JointErrors:
     """The joint part (deg, per joint 1-6; seconds of model time). See the module docstring."""
 
-    sigma_deg: Six = (0.00023, 0.0016, 0.0016, 0.00045, 0.0049, 0.0005)
-    backlash_deg: Six = (0.002,) * 6
-    settle_deg: Six = (0.005,) * 6
+    sigma_deg: Joints6 = (0.00023, 0.0016, 0.0016, 0.00045, 0.0049, 0.0005)
+    backlash_deg: Joints6 = (0.002,) * 6
+    settle_deg: Joints6 = (0.005,) * 6
     settle_time_s: float = 0.05
 
     def __post_init__(self) -> None:

@@ -4,7 +4,7 @@ The station never sees the true arm; here it is compared with what the station i
 
 * ``floor_um``: the relative error of the held-out configurations with the **true** model (the true DH
   table and camera transform): what the arm's repeatability and the measurement's noise leave, the
-  issue's floor;
+  calibration's floor;
 * per identified parameter, the truth (the true arm expressed in the identified parameters by
   ``station.calibration.equivalent_errors``: the structural ones held at nominal), the error in sigmas
   and whether the 95 % interval holds it.

@@ -1,4 +1,5 @@
-"""Build concrete devices by name without importing them.
+"""The station's configuration (``station.toml``: its models, loading and snapshot) and the device
+registry, which builds concrete devices by name without importing them.
 
 Drivers (``drivers/``) and twins (``sim/``) register factories under the entry-point group
 ``station.devices`` with names ``KIND.NAME`` (``robot.crs_a465``, ``robot.sim``, ``camera.aravis`` ...),

@@ -18,8 +18,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from station.compute import MeasureBackend
+from station.displacements import ValidationError, ValidationResult, validate
 from station.imagesets import ImageSet
-from station.validation import ValidationError, ValidationResult, validate
 from station.vision import MeasureParams, field_name
 
 #: Table 1 of the seed: (FILTER, SKIP, TESTWIDTH, TESTHEIGHT) per trial, and its MaxE / MeanE (mm).

@@ -1,4 +1,5 @@
-"""Plain-text tables for the command line, and the seed's Table 1 layout shared with session reports."""
+"""Plain-text tables for the command line (measurements, validation, sweeps), and the seed's Table 1 layout
+shared with session reports."""
 
 from __future__ import annotations
 
@@ -7,8 +8,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from station.batch import FileResult
-from station.sweep import SEED_TABLE_1, seed_trials
-from station.validation import ValidationResult
+from station.displacements import ValidationResult
+from station.parameter_study import SEED_TABLE_1, seed_trials
 
 
 def table(headers: Sequence[str], rows: Sequence[Sequence[str]]) -> str:

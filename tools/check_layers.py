@@ -48,10 +48,10 @@ SESSION_CODE = (
     "station.kinds",
     "station.batch",
     "station.resources",
-    "station.report",
     "station.reporting",
-    "station.validation",
-    "station.sweep",
+    "station.text_tables",
+    "station.displacements",
+    "station.parameter_study",
     "station.commands",
     "station.cli",
 )

@@ -28,9 +28,7 @@ from dataclasses import dataclass
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from station.devices import JOINT_COUNT
-
-Six = tuple[float, float, float, float, float, float]
+from station.devices import JOINT_COUNT, Joints6
 
 
 class MotionSettings(BaseModel):
@@ -38,10 +36,10 @@ class MotionSettings(BaseModel):
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
-    max_speed_deg_s: Six = Field(
+    max_speed_deg_s: Joints6 = Field(
         (180.0, 180.0, 180.0, 172.0, 172.0, 172.0), description="[A] joint speeds at 100 % speed"
     )
-    accel_deg_s2: Six = Field(
+    accel_deg_s2: Joints6 = Field(
         (720.0, 720.0, 720.0, 1430.0, 1430.0, 1430.0), description="[A] joint accelerations (not scaled)"
     )
     deadline_factor: float = Field(3.0, ge=1.0, description="deadline = expected duration x this + margin")
@@ -63,7 +61,7 @@ class MotionSettings(BaseModel):
     pose_tolerance_deg: float = Field(
         0.01, gt=0.0, description="ready/home: w0 further than this from the configured pose warns"
     )
-    home_pose_deg: Six | None = Field((0.0,) * 6, description="[A] where home ends (None: not compared)")
+    home_pose_deg: Joints6 | None = Field((0.0,) * 6, description="[A] where home ends (None: not compared)")
     point_of_control_wait_s: float = Field(
         600.0, ge=0.0, description="extra time granted while the pendant holds the point of control"
     )

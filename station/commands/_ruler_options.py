@@ -13,7 +13,7 @@ from station.batch import FileResult
 from station.camera_model import CameraModelError
 from station.commands._common import SMALL_FILE_MAX_BYTES, load_camera_model_file
 from station.imageio import ImageFileError, read_file_bytes
-from station.report import table
+from station.text_tables import table
 from station.vision import RulerParams, RulerSpec, parse_ruler_assignments
 
 ARTIFACTS = ("cross", "ruler")

@@ -29,7 +29,7 @@ from station.imageio import (
     ImageLimits,
     read_file_bytes,
 )
-from station.report import measurement_rows
+from station.text_tables import measurement_rows
 from station.vision import MeasureParams, RulerParams, parse_assignments
 
 

@@ -110,7 +110,7 @@ def run_sessions(args: argparse.Namespace) -> int:
     if args.json:
         print(dumps([SessionSummary.of(r) for r in rows]))
         return 0
-    from station.report import table
+    from station.text_tables import table
 
     print(
         table(

@@ -11,10 +11,10 @@ from pydantic import ValidationError as PydanticValidationError
 from station.batch import default_jobs
 from station.commands._common import add_measure_options, params_from_args
 from station.commands._parsing import SubParsers
+from station.displacements import CALIBRATIONS
 from station.imagesets import ImageSetError, load_set
-from station.report import SweepRow, sweep_report
-from station.sweep import PRECISE_GRID, Trial, best, grid, parse_grid, run_sweep, seed_trials
-from station.validation import CALIBRATIONS
+from station.parameter_study import PRECISE_GRID, Trial, best, grid, parse_grid, run_sweep, seed_trials
+from station.text_tables import SweepRow, sweep_report
 
 
 def register(sub: SubParsers) -> None:

@@ -9,9 +9,9 @@ import sys
 from station.batch import default_jobs
 from station.commands._common import add_measure_options, params_from_args
 from station.commands._parsing import SubParsers
+from station.displacements import CALIBRATIONS, ValidationError, validate
 from station.imagesets import ImageSetError, load_set
-from station.report import validation_report
-from station.validation import CALIBRATIONS, ValidationError, validate
+from station.text_tables import validation_report
 
 
 def register(sub: SubParsers) -> None:

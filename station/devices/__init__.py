@@ -42,6 +42,7 @@ from station.devices._lifecycle import (
 )
 from station.devices._robot import (
     JOINT_COUNT,
+    Joints6,
     Robot,
     RobotPosition,
     RobotStatus,
@@ -82,6 +83,7 @@ __all__ = [
     "GainAdjustable",
     "ImageArray",
     "InvalidSettingError",
+    "Joints6",
     "MotionRejectedError",
     "MotionStoppedError",
     "NotSupportedError",

@@ -11,6 +11,9 @@ from station.local_ack import LocalAcknowledgement
 
 JOINT_COUNT = 6
 
+Joints6 = tuple[float, float, float, float, float, float]
+"""One value per joint of the six-axis arm (deg, deg/s, ...): the one name of that type everywhere."""
+
 
 @dataclass(frozen=True)
 class RobotStatus:

@@ -28,7 +28,7 @@ Two optional methods:
 
 Offline plans (``sweep``, ``reanalyse``) have no device actions: their steps carry a :class:`Compute`.
 Plans never touch a concrete driver; the runner executes the actions (architecture: plans and the
-runner see devices only through ``station/devices.py``).
+runner see devices only through ``station.devices``).
 """
 
 from __future__ import annotations

@@ -9,8 +9,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from station.plans._results import Check
-from station.report import table
 from station.reporting._session import Session, format_date, format_value
+from station.text_tables import table
 
 
 @dataclass(frozen=True)

@@ -22,7 +22,7 @@ __all__ = ["DEFAULT_READY_POSE_DEG", "HALT_SPEED_PCT", "SelftestRig", "free", "o
 DEFAULT_READY_POSE_DEG = (0.0, 0.0, 90.0, 0.0, 90.0, 0.0)
 """Where ``ready`` is assumed to go when the configuration does not say (DIALECT.md, still assumed 4)."""
 HALT_SPEED_PCT = 5.0
-"""The halt is tested at this speed (the issue's "low speed")."""
+"""The halt is tested at this speed (the self-test's "low speed")."""
 
 
 @dataclass

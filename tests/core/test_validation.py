@@ -11,9 +11,9 @@ import pytest
 
 from sim.imageset import render_validation_set
 from station.cli import main
+from station.displacements import validate
 from station.imagesets import ImageSetError, load_set, read_displacements
-from station.sweep import SEED_TABLE_1, parse_grid, seed_trials
-from station.validation import validate
+from station.parameter_study import SEED_TABLE_1, parse_grid, seed_trials
 from station.vision import MeasureParams, centre, series_centers_mm, series_homography, square_homography
 
 

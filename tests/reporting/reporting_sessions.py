@@ -142,7 +142,7 @@ def repeatability_results(seed: int = 2, *, cycles: int = 30, sequences: bool = 
 
 
 def sweep_results(seed: int = 3) -> dict[str, Any]:
-    from station.sweep import SEED_TABLE_1
+    from station.parameter_study import SEED_TABLE_1
 
     rng = np.random.default_rng(seed)
     trials = []

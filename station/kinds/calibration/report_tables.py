@@ -15,7 +15,7 @@ from station.reporting._table import (
     make_table,
 )
 
-#: The issue's targets for the relative error: after at least 10x below before, within 2x of the floor.
+#: The calibration's targets for the relative error: after at least 10x below before, within 2x of the floor.
 BEFORE_AFTER_TARGET, AFTER_FLOOR_TARGET = 10.0, 2.0
 
 
@@ -34,7 +34,7 @@ def _verdict(ok: bool) -> str:
 
 
 def relative_error_table(r: CalibrationResults) -> Table:
-    """Before / after / floor (um) and the two ratios the issue's targets are stated in."""
+    """Before / after / floor (um) and the two ratios the targets are stated in."""
     e = r.relative_error_um
     gain, excess = _ratio(e.before, e.after), _ratio(e.after, e.floor)
     rows = [

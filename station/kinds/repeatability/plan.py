@@ -24,7 +24,7 @@ import numpy as np
 import numpy.typing as npt
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from station.devices import JOINT_COUNT
+from station.devices import JOINT_COUNT, Joints6
 from station.metrology import repeatability, rp_interval
 from station.plans import (
     Capture,
@@ -45,7 +45,6 @@ FloatArray = npt.NDArray[np.float64]
 #: The seed's Table 2: RP (mm) per joint, delta 10 deg, about 80 % speed and 50 % rated load, 30 cycles.
 SEED_TABLE2_MM = {"J1": 0.01664, "J2": 0.01813, "J3": 0.02321, "J4": 0.01671, "J5": 0.05299, "J6": 0.01601}
 
-Joints6 = tuple[float, float, float, float, float, float]
 
 #: A test's reference capture farther than this from the session's first: the arm or the artifact moved.
 REFERENCE_LIMIT_MM = 0.5

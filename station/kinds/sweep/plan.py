@@ -10,11 +10,11 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from station.displacements import CALIBRATIONS
 from station.imagesets import ImageSet
+from station.parameter_study import grid, run_sweep, seed_trials
 from station.plans import CaptureResult, Compute, PlanContext, PlanError, ReferencePose, Step
 from station.plans._recorded import record_of
-from station.sweep import grid, run_sweep, seed_trials
-from station.validation import CALIBRATIONS
 from station.vision import field_name
 
 

@@ -8,7 +8,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from station.kinds.sweep.results import SweepResults
-from station.report import SweepRow, is_seed_table_1, seed_table_1, sweep_note, sweep_table
+from station.parameter_study import SEED_TABLE_1
 from station.reporting._figure import (
     MAX_C,
     MEAN_C,
@@ -21,7 +21,7 @@ from station.reporting._table import (
     make_table,
     tuples,
 )
-from station.sweep import SEED_TABLE_1
+from station.text_tables import SweepRow, is_seed_table_1, seed_table_1, sweep_note, sweep_table
 
 
 def sweep_fit(r: SweepResults) -> str:
