@@ -87,6 +87,9 @@ SHARED_SERVICES: dict[str, Callable[[dict[str, Any]], bool]] = {
     "tests.api.test_measure": lambda options: not options,  # the default service: it only measures
     "tests.api.test_fuzz": lambda options: not options,  # reads the schema; the fuzzer is refused or reads
     "tests.api.test_auth": lambda options: options == {"sim": False},  # the offline one: reads, refusals
+    # offline services with tight limits: uploads measured or refused, stalled or dropped connections
+    # (no session is created: a refused body never reaches the route)
+    "tests.api.test_limits": lambda options: options.get("sim") is False,
 }
 
 
