@@ -9,7 +9,8 @@ micrometers. Start it at the world's reference pose, where the camera looks down
 from __future__ import annotations
 
 import math
-from typing import Any
+from dataclasses import replace
+from typing import Any, Literal
 
 import numpy as np
 
@@ -253,6 +254,7 @@ def build_sim_station(
     operator: bool = True,
     sensor_mount: SensorMount | None = SIM_SENSOR_MOUNT,
     max_speed_pct: float = SIM_MAX_SPEED_PCT,
+    table_artifact: Literal["cross", "ruler"] | None = None,
     **twin_options: Any,
 ) -> StationDevices:
     """Device factory (``station.sim``): the whole simulated station, built but not connected.
@@ -262,9 +264,12 @@ def build_sim_station(
     (``operator=False``: by a person through the API, the world's micrometers then follow what they
     confirm). The Z distance sensor twin (a Keyence IL-065 behind a DL-RS1A) runs on its own pty at
     ``sensor_mount`` in the camera frame, read by the real driver (``sensor_mount=None``: no sensor).
-    ``max_speed_pct``: the cell's speed cap (``[robot] safety``). ``truth`` is the :class:`SimStation`
+    ``max_speed_pct``: the cell's speed cap (``[robot] safety``). ``table_artifact``: what the X-Y table
+    carries (``WorldSpec.table_artifact``; None: the spec's). ``truth`` is the :class:`SimStation`
     (tests and benchmarks only).
     """
+    if table_artifact is not None:
+        spec = replace(spec or WorldSpec(), table_artifact=table_artifact)
     sim = SimStation(
         spec,
         seed=seed,

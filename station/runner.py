@@ -88,6 +88,7 @@ from station.plans import (
     station_cell,
 )
 from station.plans._gates import verdict
+from station.plans._ruler import capture_params
 from station.prompts import PromptError, PromptEvent
 from station.record import EventRow, Record, RecordError, SessionRow, station_lock
 from station.vision import MeasurementError, MeasureParams, measure
@@ -1066,7 +1067,9 @@ class SessionRunner:
     ) -> list[int]:
         """Store each frame (lossless, fsynced), then measure it from the stored file and record that."""
         ids = []
-        params_doc = self.measure_params.model_dump(mode="json")
+        shape = frames[0].image.shape if frames else (0, 0)
+        params = capture_params(meta, self.measure_params, shape)  # a frame of a ruler: measure_ruler's
+        params_doc = params.model_dump(mode="json")
         software = f"station {__version__}"
         for fi, frame in enumerate(frames):
             cap = self.record.save_capture(
@@ -1082,9 +1085,9 @@ class SessionRunner:
             self._event(
                 "image_captured", {"capture_id": cap.id, "path": cap.path, "step": step.index, "frame": fi}
             )
-            result = measure_file(Path(self.record.data_dir) / cap.path, self.measure_params).to_json()
+            result = measure_file(Path(self.record.data_dir) / cap.path, params).to_json()
             result["file"] = cap.path
-            if self.scale_calibration is not None and result.get("ok"):
+            if self.scale_calibration is not None and result.get("ok") and params is self.measure_params:
                 result.setdefault("diagnostics", {})["scale_calibration"] = self.scale_calibration
             self.record.add_measurement(sid, cap.id, result, params=params_doc, software=software)
             ok = bool(result.get("ok"))
