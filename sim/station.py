@@ -36,6 +36,7 @@ from station.kinds.calibration.plan import LOOK_DOWN, square_on
 from station.kinematics import Kinematics, transform
 from station.mounts import MountBody
 from station.prompts import PromptBroker
+from station.ruler_config import RulerConfig
 
 #: The simulated Z sensor's mount in the camera frame: 30 mm beside the optical axis, beam parallel to
 #: it, reference point in the camera's pinhole plane, so that it reads the working distance (68 mm, inside
@@ -245,6 +246,24 @@ def taught_turns_deg(world: World, *, digits: int | None = 1) -> list[float]:
     return out
 
 
+def _rounded(v: np.ndarray, digits: int) -> tuple[float, float, float]:
+    return (round(float(v[0]), digits), round(float(v[1]), digits), round(float(v[2]), digits))
+
+
+def taught_rulers(world: World) -> list[RulerConfig]:
+    """The cell's fixed rulers as a person would describe them: graduation 0's point and the direction
+    read to 0.1 mm and 0.001 (a ruler on the table is where it was put; the fit finds the rest)."""
+    return [
+        RulerConfig(
+            origin_mm=_rounded(F[:3, 3], 1),
+            direction=_rounded(F[:3, 0], 3),
+            normal=_rounded(-F[:3, 2], 3),
+            name=mount.name,
+        )
+        for F, mount in zip(world.ruler_poses(), world.spec.rulers, strict=False)  # a table's ruler: last
+    ]
+
+
 def build_sim_station(
     *,
     spec: WorldSpec | None = None,
@@ -311,6 +330,7 @@ def build_sim_station(
                 artifact_normals=taught_normals(sim.world),
                 working_distance_mm=sim.world.spec.camera.working_distance_mm,
                 pixel_mm=1.0 / sim.world.spec.camera.px_per_mm,
+                rulers=taught_rulers(sim.world),
             ),
         )
         robot: Robot = build("robot", "crs_a465", port=sim.port, safety=config.robot_safety())
