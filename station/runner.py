@@ -876,8 +876,8 @@ class SessionRunner:
         if self._captures >= EARLY_FAILURE_CAPTURES and self._measured_ok == 0:
             raise SessionError(
                 f"none of the first {self._captures} captures could be measured (last: {self._last_error}); "
-                "check that the crossing is in view and in focus, the lighting, and the measurement "
-                "parameters, then start again"
+                "check that the artifact (the crossing, or the ruler) is in view and in focus, the lighting, "
+                "and the measurement parameters, then start again"
             )
 
     # ------------------------------------------------------------------ the store thread

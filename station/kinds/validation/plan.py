@@ -179,11 +179,18 @@ class ValidationPlan:
     ) -> dict[str, Any]:
         ok = [c for c in measured(captures) if c.meta.get("role") == "position"]
         width = ctx.measure_params.groove_width_mm
+        ruler = params.artifact == RULER
         if len({c.meta["position"] for c in ok}) < 3:
-            raise PlanError(
+            message = (
                 f"only {len({c.meta['position'] for c in ok})} positions were measured; at least 3 are needed"
             )
-        ruler = params.artifact == RULER
+            why = failures([c for c in captures if c.meta.get("role") == "position"])
+            if ruler and why:  # say what the measurement saw, and what to do
+                message += (
+                    f" (a frame: {why[0]['error']}); put the ruler on the table under the camera at its "
+                    "reference pose, or validate with artifact=cross"
+                )
+            raise PlanError(message)
         if ruler:  # absolute, from each frame alone: no homography across the series, no groove width
             pos_mm = np.array([table_point_mm(c.measurement or {}) for c in ok], dtype=np.float64)
         else:
