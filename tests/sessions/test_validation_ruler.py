@@ -85,7 +85,7 @@ def test_a_ruler_validation_measures_the_true_table_displacements(record: Record
 
 def test_station_run_validation_takes_the_artifact_parameter(tmp_path: Path) -> None:
     """``station run validation --param artifact=ruler`` as a user gives it: the simulated operator puts
-    a ruler on the table, the session measures it; the cross stays the default."""
+    a ruler on the table, the session measures it; ``reanalyse`` measures it again as a ruler."""
     data = tmp_path / "data"
     args = [sys.executable, "-m", "station.cli", "run", "validation", "--sim", "--data", str(data)]
     pattern = ["--param", "pattern_um=[[0, 0], [254, 0], [0, 254], [254, 254]]", "--json"]
@@ -98,6 +98,15 @@ def test_station_run_validation_takes_the_artifact_parameter(tmp_path: Path) -> 
     assert doc["results"]["artifact"] == "ruler"
     assert doc["results"]["mean_um"] < 0.5
     assert doc["results"]["groove_width_mm"] is None
+    # a re-analysis measures the ruler's frames with the ruler's measurement again: the same results
+    again = subprocess.run(
+        [*args[:3], "run", "reanalyse", "--param", f"session={doc['id']}", "--data", str(data), "--json"],
+        capture_output=True,
+        text=True,
+        timeout=240,
+    )
+    assert again.returncode == 0, again.stderr
+    assert json.loads(again.stdout.strip().splitlines()[-1])["results"]["validation"] == doc["results"]
 
 
 def test_an_unknown_artifact_is_a_usage_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
