@@ -22,6 +22,20 @@ FloatArray = npt.NDArray[np.float64]
 Image = npt.NDArray[np.uint8]
 
 
+TABLE_RULER_S_MM = 125.0
+"""Where along a ruler on the X-Y table (``WorldSpec.table_artifact = "ruler"``) the optical axis meets
+it at the reference pose and table (0, 0): its middle, so that a validation's pattern stays on it."""
+
+
+def table_ruler_frame(artifact_frame: FloatArray, s_mm: float = TABLE_RULER_S_MM) -> FloatArray:
+    """The 4x4 frame (base frame) of a ruler laid on the X-Y table in place of the crossed artifact: its
+    ``s`` along the artifact's u, ``t`` along v, ``n`` into the table as the artifact's, and its point
+    ``s_mm`` on the axis where the crossing would be (``artifact_frame``, the table at (0, 0))."""
+    F = np.array(artifact_frame, dtype=np.float64)
+    F[:3, 3] -= F[:3, 0] * s_mm
+    return F
+
+
 def _off_glass(homography: FloatArray, shape: tuple[int, int]) -> npt.NDArray[np.bool_] | None:
     """Pixels whose ray meets the ruler's plane beyond its glass; None when the whole frame is on it."""
     g = np.linalg.inv(homography)
@@ -72,4 +86,4 @@ def render_ruler_view(
     return image, truth
 
 
-__all__ = ["render_ruler_view"]
+__all__ = ["TABLE_RULER_S_MM", "render_ruler_view", "table_ruler_frame"]

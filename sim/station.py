@@ -9,7 +9,8 @@ micrometers. Start it at the world's reference pose, where the camera looks down
 from __future__ import annotations
 
 import math
-from typing import Any
+from dataclasses import replace
+from typing import Any, Literal
 
 import numpy as np
 
@@ -35,6 +36,7 @@ from station.kinds.calibration.plan import LOOK_DOWN, square_on
 from station.kinematics import Kinematics, transform
 from station.mounts import MountBody
 from station.prompts import PromptBroker
+from station.ruler_config import RulerConfig
 
 #: The simulated Z sensor's mount in the camera frame: 30 mm beside the optical axis, beam parallel to
 #: it, reference point in the camera's pinhole plane, so that it reads the working distance (68 mm, inside
@@ -244,6 +246,24 @@ def taught_turns_deg(world: World, *, digits: int | None = 1) -> list[float]:
     return out
 
 
+def _rounded(v: np.ndarray, digits: int) -> tuple[float, float, float]:
+    return (round(float(v[0]), digits), round(float(v[1]), digits), round(float(v[2]), digits))
+
+
+def taught_rulers(world: World) -> list[RulerConfig]:
+    """The cell's fixed rulers as a person would describe them: graduation 0's point and the direction
+    read to 0.1 mm and 0.001 (a ruler on the table is where it was put; the fit finds the rest)."""
+    return [
+        RulerConfig(
+            origin_mm=_rounded(F[:3, 3], 1),
+            direction=_rounded(F[:3, 0], 3),
+            normal=_rounded(-F[:3, 2], 3),
+            name=mount.name,
+        )
+        for F, mount in zip(world.ruler_poses(), world.spec.rulers, strict=False)  # a table's ruler: last
+    ]
+
+
 def build_sim_station(
     *,
     spec: WorldSpec | None = None,
@@ -253,6 +273,7 @@ def build_sim_station(
     operator: bool = True,
     sensor_mount: SensorMount | None = SIM_SENSOR_MOUNT,
     max_speed_pct: float = SIM_MAX_SPEED_PCT,
+    table_artifact: Literal["cross", "ruler"] | None = None,
     **twin_options: Any,
 ) -> StationDevices:
     """Device factory (``station.sim``): the whole simulated station, built but not connected.
@@ -262,9 +283,12 @@ def build_sim_station(
     (``operator=False``: by a person through the API, the world's micrometers then follow what they
     confirm). The Z distance sensor twin (a Keyence IL-065 behind a DL-RS1A) runs on its own pty at
     ``sensor_mount`` in the camera frame, read by the real driver (``sensor_mount=None``: no sensor).
-    ``max_speed_pct``: the cell's speed cap (``[robot] safety``). ``truth`` is the :class:`SimStation`
+    ``max_speed_pct``: the cell's speed cap (``[robot] safety``). ``table_artifact``: what the X-Y table
+    carries (``WorldSpec.table_artifact``; None: the spec's). ``truth`` is the :class:`SimStation`
     (tests and benchmarks only).
     """
+    if table_artifact is not None:
+        spec = replace(spec or WorldSpec(), table_artifact=table_artifact)
     sim = SimStation(
         spec,
         seed=seed,
@@ -306,6 +330,7 @@ def build_sim_station(
                 artifact_normals=taught_normals(sim.world),
                 working_distance_mm=sim.world.spec.camera.working_distance_mm,
                 pixel_mm=1.0 / sim.world.spec.camera.px_per_mm,
+                rulers=taught_rulers(sim.world),
             ),
         )
         robot: Robot = build("robot", "crs_a465", port=sim.port, safety=config.robot_safety())

@@ -36,7 +36,7 @@ import math
 import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -45,7 +45,7 @@ from sim._render_camera import F4_DEFOCUS_PX_PER_MM
 from sim._render_features import vignetting_map
 from sim._table import TableAxis, TableImperfections
 from sim._world_geometry import center_mm_of, euler_xyz, on_artifact
-from sim._world_rulers import render_ruler_view
+from sim._world_rulers import render_ruler_view, table_ruler_frame
 from sim.arm_errors import FlangeErrors, FlangeErrorSequence
 from sim.artifact import ArtifactSpec, CameraSpec, Pose, Truth, homography_for, render
 from sim.cell_rulers import DEFAULT_RULERS, RulerMount, on_substrate, ray_hit, seen_ruler
@@ -102,6 +102,9 @@ class WorldSpec:
     """The rulers fixed in the cell (``sim.cell_rulers``): two on the table's plane, one on an angle block,
     on the side of the cell opposite the X-Y table. The camera sees a ruler when its optical axis meets
     the ruler's glass."""
+    table_artifact: Literal["cross", "ruler"] = "cross"
+    """What the X-Y table carries: the crossed artifact, or a ruler in its place (``sim._world_rulers``:
+    its middle where the crossing would be, ``s`` along the artifact's u) for a validation with the ruler."""
     magnification_seed: int | None = None
     """None: the camera's true magnification is its nominal (``camera.px_per_mm``); a seed: the true
     focal length (and so the scale at the focal plane) differs from the nominal by a factor drawn
@@ -206,6 +209,9 @@ class World:
             for x, y, z, yaw, tilt in self.spec.bench_artifacts
         ]
         self._rulers = [mount.frame(float(focus[2])) for mount in self.spec.rulers]  # on the table's plane
+        self._table_ruler = (
+            table_ruler_frame(self._artifact0) if self.spec.table_artifact == "ruler" else None
+        )
         self._last_ruler: tuple[int, RulerTruth] | None = None
 
     # ------------------------------------------------------------------ arm and camera
@@ -268,18 +274,23 @@ class World:
         return [self.table_artifact_pose(), *(T.copy() for T in self._bench)]
 
     def ruler_poses(self) -> list[FloatArray]:
-        """Each ruler's 4x4 frame in the base frame (``sim.cell_rulers``; truth)."""
-        return [F.copy() for F in self._rulers]
+        """Each ruler's 4x4 frame in the base frame (``sim.cell_rulers``; truth); the table's last, where
+        the table carries one (it moves with the carriage)."""
+        if self._table_ruler is None:
+            return [F.copy() for F in self._rulers]
+        F = self._table_ruler.copy()
+        F[:3, 3] += self._table_axes @ np.array(self.table_position_mm())
+        return [*(R.copy() for R in self._rulers), F]
 
     def seen_ruler(self, camera_pose: FloatArray) -> int | None:
         """Index (in :meth:`ruler_poses`) of the ruler whose glass the optical axis meets, or None."""
-        return seen_ruler(camera_pose, self._rulers)
+        return seen_ruler(camera_pose, self.ruler_poses())
 
     def surface_pose(self, head_pose: FloatArray) -> FloatArray:
         """What a beam from ``head_pose`` (4x4, along its +z) reads: a ruler's glass where the beam meets
         one, as a plate frame centred where it meets it (normal into the glass), else the artifact the
         camera sees (:meth:`artifact_pose`). Truth, for the distance sensor's twin."""
-        for F in self._rulers:
+        for F in self.ruler_poses():
             hit = ray_hit(head_pose[:3, 3], head_pose[:3, 2], F)
             if hit is not None and on_substrate(hit[0], hit[1]):
                 return transform(F[:3, :3], F[:3, :3] @ np.array([hit[0], hit[1], 0.0]) + F[:3, 3])
@@ -399,10 +410,11 @@ class World:
         most of the field anyway). All through the true camera (:attr:`true_camera`).
         """
         cam = self.camera_pose()
-        r = self.seen_ruler(cam)
+        rulers = self.ruler_poses()
+        r = seen_ruler(cam, rulers)
         if r is not None:
             seen_r = render_ruler_view(
-                np.linalg.inv(cam) @ self._rulers[r],
+                np.linalg.inv(cam) @ rulers[r],
                 camera=self.true_camera,
                 preset_for=lambda pose: self.preset_for(pose, exposure=exposure),
                 background=lambda: self._background(rng, exposure),

@@ -35,6 +35,7 @@ from station.mounts import (
 )
 from station.prompts import PromptBroker
 from station.redaction import redact
+from station.ruler_config import RulerConfig
 
 log = logging.getLogger(__name__)
 
@@ -219,6 +220,7 @@ class CalibrationConfig(BaseModel):
     artifact_names: list[str] | None = Field(
         None, description="a name for each artifact (station teach artifact NAME); default 1, 2, ..."
     )
+    rulers: list[RulerConfig] = Field(default_factory=list, description="the cell's rulers (issue 22)")
 
     @field_validator("artifacts_mm")
     @classmethod

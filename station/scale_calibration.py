@@ -12,6 +12,12 @@ Nothing is lost: every calibration the station has used is kept in ``DATA/scale-
 one numbered file per change (a validation's, or a revert's), and :func:`revert` goes back to the
 calibration that was current before the current one was written (``station scale-calibration
 show|history|revert``, and the service's ``/api/v1/station/scale-calibration`` routes).
+
+A calibration session with the cell's rulers (issue 22) gives the width too, without a validation: the
+grooves' widths its crossings measured (px) over the magnification the rulers' certified pitch gave
+(px/mm). Only such a session that succeeded and passed every ``fail`` gate (the magnification's
+agreement with the groove widths among them) writes it, with ``"source": "ruler"`` in the file and
+``"action": "ruler"`` in its history entry; a validation's has no ``source`` (its action says it).
 """
 
 from __future__ import annotations
@@ -50,10 +56,15 @@ class ScaleCalibration(BaseModel):
         None, description="the gates the validation that wrote it passed (results.checks)"
     )
     version: int | None = Field(None, ge=1, description="its number in the station's history")
+    source: Literal["ruler"] | None = Field(
+        None, description="'ruler': a calibration session's, from its rulers; absent: a validation's"
+    )
 
     def record(self, source: str | Path | None = None) -> dict[str, Any]:
         """What a measurement records under ``diagnostics.scale_calibration`` (without the checks)."""
-        out: dict[str, Any] = self.model_dump(exclude={"checks", "version"})
+        out: dict[str, Any] = self.model_dump(exclude={"checks", "version", "source"})
+        if self.source is not None:
+            out["source"] = self.source
         if self.version is not None:
             out["version"] = self.version
         if source is not None:
@@ -122,7 +133,8 @@ def station_file(data_dir: str | Path) -> Path:
 class HistoryEntry(BaseModel):
     """One change of the station's scale calibration.
 
-    ``action``: ``validation`` (written by session ``calibration.session_id``), ``revert`` (back to
+    ``action``: ``validation`` (written by session ``calibration.session_id``), ``ruler`` (written by
+    calibration session ``calibration.session_id`` from its rulers), ``revert`` (back to
     version ``restores``), or ``found`` (a calibration file that was there before the history began).
     ``calibration`` None: the station had none after this change (nominal groove width). ``previous``:
     the version current before this one (0: none); None when unknown (nothing to revert to).
@@ -132,7 +144,7 @@ class HistoryEntry(BaseModel):
 
     version: int = Field(ge=1)
     written_at: str
-    action: Literal["validation", "revert", "found"]
+    action: Literal["validation", "ruler", "revert", "found"]
     calibration: ScaleCalibration | None
     previous: int | None = Field(None, ge=0)
     restores: int | None = Field(None, ge=0)
@@ -220,7 +232,7 @@ def write(data_dir: str | Path, cal: ScaleCalibration) -> HistoryEntry:
         entry = HistoryEntry(
             version=version,
             written_at=_now(),
-            action="validation",
+            action="ruler" if cal.source == "ruler" else "validation",
             calibration=numbered,
             previous=entries[-1].version if entries else 0,
         )
@@ -261,9 +273,12 @@ def revert(data_dir: str | Path) -> HistoryEntry:
 
 
 def from_validation(kind: str, state: str, results: Mapping[str, Any] | None) -> ScaleCalibration | None:
-    """The scale calibration a finished session may write: only a validation that succeeded, estimated
-    it (same-direction approach) and passed every ``fail`` gate; None otherwise."""
-    if kind != "validation" or state != "succeeded" or not results or not results.get("scale_calibration"):
+    """The scale calibration a finished session may write: only a validation that estimated it
+    (same-direction approach), or a calibration with rulers, that succeeded and passed every ``fail``
+    gate; None otherwise."""
+    if kind not in ("validation", "calibration") or state != "succeeded" or not results:
+        return None
+    if not results.get("scale_calibration"):
         return None
     checks = results.get("checks")
     if not isinstance(checks, list) or any(

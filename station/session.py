@@ -247,7 +247,10 @@ def run_session(
                 raise ConfigurationError(f"give --config FILE to resume {previous.id} on its station")
         devices: StationDevices | None = None
         if plan.needs and sim:
-            devices = open_sim_station(**(dict(sim) if isinstance(sim, Mapping) else {}))
+            # what the session needs in the cell (a ruler on the table): the simulated operator puts it
+            setup = getattr(plan, "sim_setup", None)
+            options = dict(setup(start.params)) if setup is not None else {}
+            devices = open_sim_station(**options, **(dict(sim) if isinstance(sim, Mapping) else {}))
         elif plan.needs:
             assert cfg is not None  # checked above
             devices = build_station(cfg)

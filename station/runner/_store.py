@@ -17,6 +17,7 @@ from station import __version__
 from station.batch import measure_file
 from station.devices import Frame
 from station.plans import CaptureResult, Step
+from station.plans._ruler import capture_params
 from station.record import Record
 from station.runner._journal import Journal
 from station.runner._states import EARLY_FAILURE_CAPTURES, FRAMES_PER_ATTEMPT, SessionError
@@ -128,16 +129,18 @@ class StorePipeline:
         if self.captures >= EARLY_FAILURE_CAPTURES and self.measured_ok == 0:
             raise SessionError(
                 f"none of the first {self.captures} captures could be measured (last: {self.last_error}); "
-                "check that the crossing is in view and in focus, the lighting, and the measurement "
-                "parameters, then start again"
+                "check that the artifact (the crossing, or the ruler) is in view and in focus, the lighting, "
+                "and the measurement parameters, then start again"
             )
 
     def _store(self, sid: str, step: Step, grabbed: Grabbed) -> list[int]:
         """Store each frame (lossless, fsynced), then measure it from the stored file and record that."""
         ids = []
-        params_doc = self.measure_params.model_dump(mode="json")
         software = f"station {__version__}"
         meta = grabbed.meta
+        shape = grabbed.frames[0].image.shape if grabbed.frames else (0, 0)
+        params = capture_params(meta, self.measure_params, shape)  # a frame of a ruler: measure_ruler's
+        params_doc = params.model_dump(mode="json")
         for fi, frame in enumerate(grabbed.frames):
             cap = self.record.save_capture(
                 sid,
@@ -152,9 +155,9 @@ class StorePipeline:
             self.journal.emit(
                 "image_captured", {"capture_id": cap.id, "path": cap.path, "step": step.index, "frame": fi}
             )
-            result = measure_file(Path(self.record.data_dir) / cap.path, self.measure_params).to_json()
+            result = measure_file(Path(self.record.data_dir) / cap.path, params).to_json()
             result["file"] = cap.path
-            if self.scale_calibration is not None and result.get("ok"):
+            if self.scale_calibration is not None and result.get("ok") and params is self.measure_params:
                 result.setdefault("diagnostics", {})["scale_calibration"] = self.scale_calibration
             self.record.add_measurement(sid, cap.id, result, params=params_doc, software=software)
             ok = bool(result.get("ok"))

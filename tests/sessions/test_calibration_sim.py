@@ -40,7 +40,8 @@ def calibrate(data: Path, *args: str) -> subprocess.CompletedProcess[str]:
     )
 
 
-SMALL = {"turns_deg": [-20.0, 70.0, 160.0], "settle_s": 0.05}
+# crossings only: the sim cell has rulers (issue 22), which tests/sessions/test_calibration_rulers.py takes
+SMALL = {"turns_deg": [-20.0, 70.0, 160.0], "settle_s": 0.05, "rulers": []}
 
 
 @pytest.fixture(scope="module")

@@ -34,8 +34,16 @@ from station.calibration import (
     crossing_positions,
     identify,
 )
+from station.kinds.calibration.meanings import measures_of
+from station.kinds.calibration.ruler_analysis import (
+    ruler_holdout,
+    ruler_observations_from,
+    ruler_placements,
+    ruler_results,
+)
 from station.kinematics import Kinematics
 from station.plans import CaptureResult, PlanError
+from station.plans._ruler import is_ruler
 
 if TYPE_CHECKING:
     from station.kinds.calibration.params import CalibrationCell, CalibrationParams
@@ -44,8 +52,11 @@ if TYPE_CHECKING:
 FIT_KINDS = {"pose": "pose", "inview": "inview", "return": "inview"}
 
 
-def calibration_setup(cell: CalibrationCell, width: int, height: int) -> CalibrationSetup:
-    """The identification's constants from the cell and the images' size."""
+def calibration_setup(
+    cell: CalibrationCell, width: int, height: int, *, rulers: bool = False
+) -> CalibrationSetup:
+    """The identification's constants from the cell and the images' size (``rulers``: with the cell's
+    rulers' taught placements, for a session that has ruler frames)."""
     if cell.sensor_mount is None:
         raise PlanError("a calibration needs the distance sensor's mount ([distance_sensor] mount)")
     principal = cell.principal_px or ((width - 1) / 2.0, (height - 1) / 2.0)
@@ -61,6 +72,7 @@ def calibration_setup(cell: CalibrationCell, width: int, height: int) -> Calibra
         nominal_tool=cell.kinematics.tool,
         artifacts=dict(enumerate(cell.artifacts_mm)),
         artifact_normals=dict(enumerate(cell.artifact_normals)) if cell.artifact_normals else {},
+        rulers=ruler_placements(cell) if rulers else {},
     )
 
 
@@ -74,7 +86,7 @@ def observations_from(
     left: list[dict[str, Any]] = []
     for c in captures:
         kind = FIT_KINDS.get(str(c.meta.get("kind")))
-        if kind is None:
+        if kind is None or is_ruler(c.meta):  # the rulers' frames: ruler_analysis
             continue
         m = c.measurement
         why = None
@@ -163,15 +175,20 @@ def analyse_calibration(
         )
     sizes = {(c.width, c.height) for c in captures if c.width and c.height}
     width, height = max(sizes) if sizes else (640, 480)
-    setup = calibration_setup(cell, width, height)
+    principal = cell.principal_px or ((width - 1) / 2.0, (height - 1) / 2.0)
+    frames, ruler_left = ruler_observations_from(captures, cell, principal)
+    setup = calibration_setup(cell, width, height, rulers=bool(frames))
     held = holdout_configurations(observations, params.holdout_fraction, params.seed)
+    held += ruler_holdout(frames, params.holdout_fraction, params.seed)
     try:
-        result = identify(observations, setup, holdout=held, loss=params.loss, f_scale=params.f_scale)
+        result = identify(
+            observations, setup, rulers=frames, holdout=held, loss=params.loss, f_scale=params.f_scale
+        )
     except CalibrationError as exc:
         raise PlanError(f"the identification failed: {exc}") from exc
     cv = result.cross_validation
     rel = cv.relative_error_um
-    return {
+    out = {
         "relative_error_um": {
             "before": rel.get("before"),
             "after": rel.get("after"),
@@ -195,13 +212,19 @@ def analyse_calibration(
             for p in result.parameters
         ],
         "observations": len(observations),
-        "configurations": len({o.configuration for o in observations}),
+        "configurations": len({o.configuration for o in observations} | {f.configuration for f in frames}),
         "placements": sorted({o.placement for o in observations}),
         "held_out_configurations": held,
         "planned_configurations": planned,
-        "left_out": left_out[:50],
+        "left_out": (left_out + ruler_left)[:50],
         "calibration": result.model_dump(mode="json"),
     }
+    if frames:  # a cell without rulers: today's results, key for key
+        figures, check = ruler_results(result, frames, captures)
+        out.update(figures)
+        out["magnification_check"] = check
+    out["measures"] = measures_of(out)
+    return out
 
 
 __all__ = [

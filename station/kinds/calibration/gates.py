@@ -11,6 +11,11 @@
   as the noise: held-out residuals much larger mean the model misses something and the intervals
   cover the true values less often than stated.
 * ``configurations_measured`` (warn): every planned configuration aligned and captured.
+* With rulers (issue 22): ``absolute_error_after_before`` (fail): the calibrated model's error along
+  the rulers (held-out frames far apart) below the nominal model's; ``magnification_groove_width``
+  (fail): the magnification the rulers gave agrees with the groove widths the crossings measured, within
+  the artifact's tolerance (``station.calibration.magnification_check``): otherwise the rulers'
+  description, the artifact or the captures are wrong.
 
 Without held-out pairs (``holdout_fraction = 0``) the relative error is not computed: the first two
 checks then fail as warnings that say so.
@@ -98,4 +103,27 @@ def calibration_checks(results: Mapping[str, Any]) -> list[dict[str, Any]]:
                 "session's warnings)",
             )
         )
-    return checks_json(checks)
+    absolute = results.get("absolute_error_um")
+    if absolute is not None:
+        ratio = _ratio(absolute.get("after"), absolute.get("before"))
+        checks.append(
+            at_most(
+                "absolute_error_after_before",
+                ratio,
+                1.0,
+                severity="fail" if ratio is not None else "warn",
+                ok="the calibrated model's error along the rulers is {value} x the nominal model's",
+                bad=(
+                    "the calibrated model's error along the rulers is {value} x the nominal model's (limit "
+                    "{limit}): check the rulers' description in [[calibration.rulers]], then run again"
+                )
+                if ratio is not None
+                else "no held-out pairs of ruler frames far apart: the error along the rulers is not "
+                f"checked; {hold}",
+            )
+        )
+    out = checks_json(checks)
+    magnification = results.get("magnification_check")
+    if magnification is not None:
+        out.append(dict(magnification))
+    return out

@@ -13,6 +13,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from station.kinematics import Kinematics, transform
 from station.plans import PlanError
+from station.ruler_config import RulerConfig
 
 if TYPE_CHECKING:
     from station.vision import MeasureParams
@@ -35,6 +36,7 @@ class CalibrationCell:
     sensor_mount: FloatArray | None = None
     max_step_deg: float = 30.0
     reference_joints_deg: tuple[float, ...] | None = None
+    rulers: tuple[RulerConfig, ...] = ()
 
     def depth_from_sensor(self, z_mm: float) -> float:
         """The artifact plane's depth along the optical axis from a sensor reading (beam parallel to the
@@ -80,6 +82,7 @@ def calibration_cell_from_config(
         sensor_mount=mount.matrix(),
         max_step_deg=float(safety.get("max_step_deg", 30.0)),
         reference_joints_deg=None if reference is None else tuple(float(a) for a in reference),
+        rulers=tuple(cal.rulers),
     )
 
 
@@ -112,6 +115,49 @@ class CalibrationParams(BaseModel):
         " residual is beyond f_scale sigmas (a mismeasured one) pulls less",
     )
     f_scale: float = Field(3.0, gt=0, le=100, description="a robust loss's scale, in sigmas (5 um)")
+    rulers: list[int] | None = Field(
+        None,
+        description="the cell's rulers ([[calibration.rulers]] indices) to capture along; default: all of"
+        " them when placements is not given, none when it is",
+    )
+    ruler_positions_mm: list[float] = Field(
+        default_factory=lambda: [5.0, 15.0, 45.0, 95.0, 155.0, 205.0, 245.0],
+        description="where along each ruler the camera looks (mm): frames 10 to 240 mm apart",
+    )
+    ruler_turns_deg: list[float] = Field(
+        default_factory=lambda: [0.0, 90.0, 180.0, 270.0],
+        description="the camera's turns about its axis over a ruler, from the image's x along +s (deg)",
+    )
+    ruler_solutions: int = Field(2, ge=1, le=8, description="joint solutions per ruler frame and turn")
+    ruler_depth_offsets_mm: list[float] = Field(
+        default_factory=lambda: [-1.5, 1.5],
+        description="frames off the capture plane, further along the optical axis (mm)",
+    )
+    ruler_depth_positions_mm: list[float] = Field(
+        default_factory=lambda: [45.0, 205.0], description="where along each ruler those frames are (mm)"
+    )
+    ruler_lean_deg: float = Field(
+        15.0, ge=0.0, le=30.0, description="the camera's lean from square in the leaning frames (0: none)"
+    )
+    ruler_lean_positions_mm: list[float] = Field(
+        default_factory=lambda: [15.0, 95.0, 205.0], description="where along each ruler it leans (mm)"
+    )
+
+    @field_validator(
+        "ruler_positions_mm", "ruler_depth_positions_mm", "ruler_lean_positions_mm", "ruler_depth_offsets_mm"
+    )
+    @classmethod
+    def _finite_mm(cls, v: list[float]) -> list[float]:
+        if not all(math.isfinite(x) and abs(x) <= 2000.0 for x in v):
+            raise ValueError(f"positions and offsets along a ruler must be finite, within 2000 mm, got {v}")
+        return v
+
+    @field_validator("ruler_turns_deg")
+    @classmethod
+    def _ruler_turns(cls, v: list[float]) -> list[float]:
+        if not v or not all(math.isfinite(t) for t in v):
+            raise ValueError(f"ruler_turns_deg needs at least one finite turn, got {v}")
+        return v
 
     @field_validator("turns_deg")
     @classmethod

@@ -38,6 +38,7 @@ from station.arm_route import quantised, split_move, travel
 from station.kinds.calibration.analysis import analyse_calibration
 from station.kinds.calibration.gates import calibration_checks
 from station.kinds.calibration.params import CalibrationCell, CalibrationParams, calibration_cell_from_config
+from station.kinds.calibration.ruler_plan import RulerConfiguration, ruler_configurations, ruler_steps
 from station.kinematics import LOOK_DOWN, KinematicsError, rot_z, square_on, transform
 from station.plans import (
     Align,
@@ -168,6 +169,13 @@ class CalibrationPlan:
                 out.append(Configuration(len(out), p, turn, k, quantised(joints), camera))
         return out
 
+    def ruler_configurations(
+        self, params: CalibrationParams, cell: CalibrationCell
+    ) -> list[RulerConfiguration]:
+        """Every frame the session takes along the cell's rulers, after the crossings' configurations
+        (``ruler_plan``; none for a cell without rulers)."""
+        return ruler_configurations(params, cell, len(self.configurations(params, cell)))
+
     def _inview_offsets(
         self, params: CalibrationParams, cell: CalibrationCell, c: Configuration
     ) -> list[tuple[str, tuple[float, ...]]]:
@@ -251,6 +259,9 @@ class CalibrationPlan:
                 meta,
             )
             previous, prev_config = c.joints_deg, c
+        yield from ruler_steps(
+            params, self.ruler_configurations(params, cell), previous, step_limit, first=prev_config is None
+        )
 
     def _corrector(self, params: CalibrationParams, cell: CalibrationCell) -> Any:
         kin = cell.kinematics
@@ -299,7 +310,12 @@ class CalibrationPlan:
         if ref is None or index == 0:
             return []
         cell = _cell(ctx)
-        previous = self.configurations(params, cell)[index - 1]
+        crossings = self.configurations(params, cell)
+        previous: Configuration | RulerConfiguration = (
+            crossings[index - 1]
+            if index <= len(crossings)
+            else self.ruler_configurations(params, cell)[index - 1 - len(crossings)]
+        )
         moves = travel(ref.joints_deg, previous.joints_deg, cell.max_step_deg * 0.9)
         meta = {"role": "resume", "configuration": previous.index}
         name = f"resume: to configuration {previous.index}'s pose"
@@ -311,8 +327,11 @@ class CalibrationPlan:
         self, params: CalibrationParams, ctx: PlanContext, captures: Sequence[CaptureResult]
     ) -> dict[str, Any]:
         cell = _cell(ctx)
-        results = analyse_calibration(params, cell, captures, planned=len(self.configurations(params, cell)))
+        planned = len(self.configurations(params, cell)) + len(self.ruler_configurations(params, cell))
+        results = analyse_calibration(params, cell, captures, planned=planned)
         results["checks"] = calibration_checks(results)
+        if results.get("scale_calibration") is not None:  # from the rulers: this session wrote it
+            results["scale_calibration"]["session_id"] = ctx.session_id
         return results
 
 

@@ -13,7 +13,19 @@ def summary(results: Mapping[str, Any]) -> str:
     def um(v: Any) -> str:
         return "-" if v is None else f"{v:.1f} um"
 
-    return (
+    rulers = ""
+    absolute, mag = results.get("absolute_error_um"), results.get("magnification")
+    if absolute is not None:
+        rulers = (
+            f"  absolute error (along the rulers): before {um(absolute.get('before'))},"
+            f" after {um(absolute.get('after'))}, floor {um(absolute.get('floor'))}\n"
+        )
+    if mag is not None:
+        rulers += (
+            f"  magnification {mag['px_per_mm']:.4f} px/mm from the rulers"
+            f" ({mag['relative_to_nominal'] * 100:+.3f} % from nominal)\n"
+        )
+    return rulers + (
         f"  relative error (held-out configurations): before {um(rel.get('before'))},"
         f" after {um(rel.get('after'))}, floor {um(rel.get('floor'))}\n"
         f"  {results['identified_count']} parameters identified from {results['observations']} captures"

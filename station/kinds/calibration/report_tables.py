@@ -67,6 +67,38 @@ def relative_error_table(r: CalibrationResults) -> Table:
     return make_table("Relative positioning error", ("quantity", "value_um", "target"), rows, *notes)
 
 
+def ruler_tables(r: CalibrationResults) -> dict[str, Table]:
+    """With rulers: the error along them (before / after / floor) and the magnification they gave."""
+    a, m = r.absolute_error_um, r.magnification
+    if a is None:
+        return {}
+    gain, excess = _ratio(a.before, a.after), _ratio(a.after, a.floor)
+    rows = [
+        ("before (nominal model)", _um(a.before, 2)),
+        ("after (calibrated model)", _um(a.after, 2)),
+        ("floor (repeatability and noise)", _um(a.floor, 2)),
+        ("before / after", "-" if gain is None else f"{gain:.1f}x"),
+        ("after / floor", "-" if excess is None else f"{excess:.2f}x"),
+    ]
+    notes = [f"{r.absolute_pairs or 0} held-out pairs of frames of {r.ruler_frames or 0} ruler frames"]
+    if m is not None:
+        interval = "" if m.interval is None else f", 95 % [{m.interval[0]:.4f}, {m.interval[1]:.4f}]"
+        notes.append(
+            f"magnification {m.px_per_mm:.4f} px/mm{interval} (nominal {m.nominal_px_per_mm:.4f}: "
+            f"{m.relative_to_nominal * 100:+.3f} %), from the rulers' certified pitch; sensor mount "
+            f"z {m.sensor_z_mm:+.4f} mm"
+        )
+    return {"absolute_error": make_table("Error along the rulers", ("quantity", "value_um"), rows, *notes)}
+
+
+def measures_table(r: CalibrationResults) -> dict[str, Table]:
+    """What each figure measures and over which region (``results.measures``: data, not prose here)."""
+    if not r.measures:
+        return {}
+    rows = [(k, v.meaning, v.region) for k, v in r.measures.items()]
+    return {"measures": make_table("What each figure measures", ("figure", "meaning", "region"), rows)}
+
+
 def _residual_row(
     data: str, model: str, s: CalibrationResiduals | None, before: CalibrationResiduals | None
 ) -> list[str]:
@@ -296,6 +328,8 @@ def calibration_tables(r: CalibrationResults) -> dict[str, Table]:
     """The relative error, residuals, parameter estimates and the identifiability analysis."""
     return {
         "relative_error": relative_error_table(r),
+        **ruler_tables(r),
+        **measures_table(r),
         "residuals": calibration_residuals_table(r),
         "estimates": estimates_table(r),
         **identifiability_tables(r),

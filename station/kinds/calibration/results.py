@@ -24,6 +24,48 @@ class RelativeError(ResultsModel):
     floor: float | None = None
 
 
+class AbsoluteError(ResultsModel):
+    """The error along the rulers (um): the mean magnitude of the arm's predicted displacement between two
+    held-out ruler frames 10 mm or more apart minus the ruler's reading of it, with the nominal
+    (``before``) and the calibrated (``after``) model, and the ``floor`` the fitted frames' scatter leaves."""
+
+    before: float | None = None
+    after: float | None = None
+    floor: float | None = None
+
+
+class MagnificationEstimate(ResultsModel):
+    """The camera's image scale at the capture plane as the rulers' certified pitch gives it (px/mm), its
+    standard uncertainty and 95 % interval, the nominal it replaces, and the sensor mount's fitted offset
+    along the optical axis (mm)."""
+
+    px_per_mm: float
+    sigma: float | None = None
+    interval: tuple[float, float] | None = None
+    nominal_px_per_mm: float
+    relative_to_nominal: float
+    sensor_z_mm: float
+    sensor_z_sigma_mm: float | None = None
+    source: str = "ruler"
+
+
+class RulerScaleCalibration(ResultsModel):
+    """The groove width (mm) the crossings' measured widths give at the rulers' magnification, its
+    standard uncertainty, and the session: the station's scale calibration from the rulers."""
+
+    groove_width_mm: float
+    u_mm: float
+    source: str = "ruler"
+    session_id: str | int | None = None
+
+
+class FigureMeaning(ResultsModel):
+    """What one of the results' figures measures, and over which region of the cell it holds."""
+
+    meaning: str
+    region: str
+
+
 class CalibrationParameter(ResultsModel):
     """One model parameter: nominal and estimate in ``unit``; ``sigma`` and ``interval`` (95 %) only when
     identified; ``structural``: no pose set identifies it (it stays at nominal)."""
@@ -98,3 +140,19 @@ class CalibrationResults(ResultsModel):
     left_out: list[Any] = Field(default_factory=list)
     calibration: CalibrationDocument
     checks: list[Check] = Field(default_factory=list)
+    absolute_error_um: AbsoluteError | None = Field(None, description="with rulers: the error along them")
+    absolute_pairs: int | None = Field(
+        None, description="held-out ruler frame pairs the absolute error averages"
+    )
+    ruler_frames: int | None = Field(None, description="ruler frames measured and used")
+    rulers: list[int] | None = Field(None, description="the cell's rulers those frames are of")
+    magnification: MagnificationEstimate | None = None
+    magnification_check: Check | None = Field(
+        None, description="the magnification against the groove widths measured (also in checks)"
+    )
+    scale_calibration: RulerScaleCalibration | None = Field(
+        None, description="with rulers: the station's scale calibration they give (written if it passed)"
+    )
+    measures: dict[str, FigureMeaning] = Field(
+        default_factory=dict, description="what each figure above measures and over which region"
+    )

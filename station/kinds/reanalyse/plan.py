@@ -25,12 +25,15 @@ from station.plans import (
     station_cell,
 )
 from station.plans._recorded import camera_height_of, record_of, reference_of
-from station.vision import MeasureParams
+from station.plans._ruler import capture_params
+from station.vision import MeasureParams, RulerParams
 
 CHUNK = 64  # captures per reanalysis step: the runner's pause/stop granularity
 
 
-def measure_stored(paths: Sequence[Path], params: MeasureParams, ctx: PlanContext) -> list[dict[str, Any]]:
+def measure_stored(
+    paths: Sequence[Path], params: MeasureParams | RulerParams, ctx: PlanContext
+) -> list[dict[str, Any]]:
     """Measure stored image files on the session's backend (else a local pool of ``ctx.jobs``);
     ``station measure --json`` objects, in order."""
     if ctx.compute is not None:
@@ -67,12 +70,20 @@ class ReanalysePlan:
                 assert c.session_id is not None
                 by_id = {cap.id: cap for cap in rec.captures(src)}
                 chunk = [by_id[i] for i in ids]
-                paths = [Path(rec.data_dir) / cap.path for cap in chunk]
-                results = measure_stored(paths, c.measure_params, c)
-                params_doc = c.measure_params.model_dump(mode="json")
+                # each capture with what the session measured it with: a ruler's frame with measure_ruler's
+                groups: dict[str, tuple[MeasureParams | RulerParams, list[int]]] = {}
+                for j, cap in enumerate(chunk):
+                    p = capture_params(cap.meta, c.measure_params, (cap.height, cap.width))
+                    groups.setdefault(p.model_dump_json(), (p, []))[1].append(j)
+                results: list[dict[str, Any]] = [{} for _ in chunk]
+                docs: list[dict[str, Any]] = [{} for _ in chunk]
+                for p, rows in groups.values():
+                    paths = [Path(rec.data_dir) / chunk[j].path for j in rows]
+                    for j, result in zip(rows, measure_stored(paths, p, c), strict=True):
+                        results[j], docs[j] = result, p.model_dump(mode="json")
                 software = _software()
                 ok = 0
-                for cap, result in zip(chunk, results, strict=True):
+                for cap, result, params_doc in zip(chunk, results, docs, strict=True):
                     result["file"] = cap.path
                     rec.add_measurement(c.session_id, cap.id, result, params=params_doc, software=software)
                     ok += bool(result.get("ok"))

@@ -64,9 +64,19 @@ def measured(captures: Sequence[CaptureResult]) -> list[CaptureResult]:
     return [c for c in captures if c.measurement is not None and c.measurement.get("ok")]
 
 
+def table_point_mm(measurement: Mapping[str, Any]) -> tuple[float, float]:
+    """Where a measurement places the table's artifact (mm, its own axes), up to a constant: the
+    crossing's ``center_mm``; on a ruler, minus the ruler point under the reference pixel
+    (``position_mm``, ``offset_mm``: absolute), which moves against the table."""
+    if measurement.get("artifact") == "ruler":
+        return -float(measurement["position_mm"]), -float(measurement["offset_mm"])
+    x, y = measurement["center_mm"]
+    return float(x), float(y)
+
+
 def _center_um(captures: Sequence[CaptureResult]) -> FloatArray | None:
-    """The mean ``center_mm`` of measured captures (um), None when none was measured."""
-    pts = [c.measurement["center_mm"] for c in measured(captures) if c.measurement is not None]
+    """The mean table point (:func:`table_point_mm`) of measured captures (um), None when none was."""
+    pts = [table_point_mm(c.measurement) for c in measured(captures) if c.measurement is not None]
     if not pts:
         return None
     return np.mean(np.asarray(pts, dtype=np.float64), axis=0) * 1000.0

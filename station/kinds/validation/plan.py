@@ -8,6 +8,12 @@ reached forwards, which takes the micrometers' backlash out, as metrologists do.
 seed's plain path. The similarity fit's scale estimates the artifact's true groove width (known only to
 +0/-0.002 in): ``groove_width_mm / scale``, with its standard uncertainty, stored as the station's scale
 calibration.
+
+With ``artifact = "ruler"`` the table carries a ruler (``station/vision/RULER.md``) instead of the
+crossed artifact: each frame is measured with ``measure_ruler`` (the absolute position along the ruler
+and the offset across it of the point under the reference pixel), the same fits and gates follow; the
+similarity's scale then compares the micrometers with the ruler's certified pitch, there is no groove
+width to estimate and no scale calibration is written.
 """
 
 from __future__ import annotations
@@ -29,6 +35,7 @@ from station.kinds.validation.gates import (
     resume_check,
     rigid_checks,
     table_moves_check,
+    table_point_mm,
 )
 from station.metrology import fit_affine, fit_rigid, scale_uncertainty
 from station.patterns import STEP_UM, STEPS_PER_SIDE, validation_pattern_um
@@ -44,6 +51,7 @@ from station.plans import (
 )
 from station.plans._analysis import failures, group_mean, measured, series_positions_mm
 from station.plans._gates import checks_json
+from station.plans._ruler import ARTIFACT_KEY, RULER
 
 
 class ValidationParams(BaseModel):
@@ -59,6 +67,9 @@ class ValidationParams(BaseModel):
         STEPS_PER_SIDE, ge=1, le=1000, description="the default square's steps a side"
     )
     origin_mm: tuple[float, float] = Field((0.0, 0.0), description="table position of the pattern's (0, 0)")
+    artifact: Literal["cross", "ruler"] = Field(
+        "cross", description="what the table carries: the crossed-groove artifact or a ruler"
+    )
     frames_per_position: int = Field(1, ge=1, le=100)
     approach: Literal["same-direction", "direct"] = "same-direction"
     approach_um: float = Field(25.4, gt=0, le=1000, description="overshoot before a backwards approach")
@@ -117,10 +128,22 @@ class ValidationPlan:
             actions.append(MoveTable(x, y))
             if params.settle_s:
                 actions.append(Settle(params.settle_s))
-            meta = {"role": "position", "position": i, "commanded_um": [x_um, y_um], "table_mm": [x, y]}
+            meta: dict[str, Any] = {
+                "role": "position",
+                "position": i,
+                "commanded_um": [x_um, y_um],
+                "table_mm": [x, y],
+            }
+            if params.artifact == RULER:
+                meta[ARTIFACT_KEY] = RULER
             actions.append(Capture(params.frames_per_position, meta))
             yield Step(i, f"position {i}", tuple(actions), meta)
             last = (x, y)
+
+    def sim_setup(self, params: ValidationParams) -> dict[str, Any]:
+        """What the simulated station must hold for these parameters: a ruler on its table when the
+        validation is made with one (``build_sim_station``'s ``table_artifact``); nothing for the cross."""
+        return {"table_artifact": RULER} if params.artifact == RULER else {}
 
     def reference_pose(self, params: ValidationParams, ctx: PlanContext) -> ReferencePose | None:
         """The arm at the station's reference pose, over the table's artifact; never moved by a validation
@@ -156,11 +179,22 @@ class ValidationPlan:
     ) -> dict[str, Any]:
         ok = [c for c in measured(captures) if c.meta.get("role") == "position"]
         width = ctx.measure_params.groove_width_mm
+        ruler = params.artifact == RULER
         if len({c.meta["position"] for c in ok}) < 3:
-            raise PlanError(
+            message = (
                 f"only {len({c.meta['position'] for c in ok})} positions were measured; at least 3 are needed"
             )
-        pos_mm = series_positions_mm(ok, width)
+            why = failures([c for c in captures if c.meta.get("role") == "position"])
+            if ruler and why:  # say what the measurement saw, and what to do
+                message += (
+                    f" (a frame: {why[0]['error']}); put the ruler on the table under the camera at its "
+                    "reference pose, or validate with artifact=cross"
+                )
+            raise PlanError(message)
+        if ruler:  # absolute, from each frame alone: no homography across the series, no groove width
+            pos_mm = np.array([table_point_mm(c.measurement or {}) for c in ok], dtype=np.float64)
+        else:
+            pos_mm = series_positions_mm(ok, width)
         keys, mean_mm = group_mean([c.meta["position"] for c in ok], pos_mm)
         commanded = np.array(
             [next(c.meta["commanded_um"] for c in ok if c.meta["position"] == k) for k in keys]
@@ -183,9 +217,9 @@ class ValidationPlan:
             "parallelogram_mean_um": None if affine is None else affine.mean,
             "parallelogram_max_um": None if affine is None else affine.max,
             "scale": scale,
-            "groove_width_mm": width_est,
-            "groove_width_u_mm": width * u_scale / scale**2 if seen else math.nan,
-            "groove_width_used_mm": width,
+            "groove_width_mm": None if ruler else width_est,
+            "groove_width_u_mm": None if ruler else (width * u_scale / scale**2 if seen else math.nan),
+            "groove_width_used_mm": None if ruler else width,
             "rigid": rigid.summary_um(),
             "similarity": similarity.summary_um(),
             "affine": None if affine is None else affine.summary_um(),
@@ -212,13 +246,18 @@ class ValidationPlan:
         limits = (params.mean_limit_um or default_mean, params.max_limit_um or default_max)
         gates = [
             table_moves_check(commanded, measured_um, keys),
-            groove_check(width_est, results["groove_width_u_mm"], params.groove_width_band_mm),
+            None
+            if ruler
+            else groove_check(width_est, results["groove_width_u_mm"], params.groove_width_band_mm),
             *rigid_checks(rigid.mean, rigid.max, limits, mode),
             positions_check(len(keys), len(params.positions_um())),
             resume_check(captures),
         ]
         results["checks"] = checks_json([g for g in gates if g is not None])
-        if params.approach == "same-direction" and ctx.session_id is not None and seen:
+        if ruler:
+            results["artifact"] = RULER
+            results["scale_u"] = u_scale
+        elif params.approach == "same-direction" and ctx.session_id is not None and seen:
             results["scale_calibration"] = {
                 "groove_width_mm": width_est,
                 "u_mm": results["groove_width_u_mm"],

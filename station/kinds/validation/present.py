@@ -11,6 +11,14 @@ from station.plans._present import flat, um
 
 def summary(results: Mapping[str, Any]) -> str:
     width = results.get("groove_width_mm")
+    if results.get("artifact") == "ruler":
+        return (
+            f"  ruler on the table: raw (rigid) error mean {um(results['mean_um'])}, max "
+            f"{um(results['max_um'])}; parallelogram mean {um(results.get('parallelogram_mean_um'))}, "
+            f"max {um(results.get('parallelogram_max_um'))}\n"
+            f"  scale {results['scale']:.6f} (the micrometers against the ruler's pitch); "
+            f"{results.get('n_positions')} positions" + (" (partial)" if results.get("partial") else "")
+        )
     return (
         f"  raw (rigid) error mean {um(results['mean_um'])}, max {um(results['max_um'])}; "
         f"parallelogram mean {um(results.get('parallelogram_mean_um'))}, "

@@ -43,7 +43,13 @@ def validation_tables(r: ValidationResults, session_id: str) -> dict[str, Table]
         ]
         for name, f in fits
     ]
-    if r.groove_width_mm is None:
+    if r.artifact == "ruler":
+        u = "" if r.scale_u is None else f", u = {r.scale_u:.6f}"
+        width = (
+            "a ruler on the table: each position read absolutely from the ruler's certified pitch; the "
+            f"scale compares the micrometers with it{u}"
+        )
+    elif r.groove_width_mm is None:
         width = "no groove width from the scale fit (the image did not follow the table)"
     else:
         width = f"groove width from the scale fit: {r.groove_width_mm:.5f} mm"

@@ -3,7 +3,7 @@ of measured to commanded displacements, each position, the groove width and the 
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import Field
 
@@ -58,3 +58,9 @@ class ValidationResults(ResultsModel):
     n_positions: int | None = None
     partial: bool | None = None
     checks: list[Check] = Field(default_factory=list)
+    artifact: Literal["ruler"] | None = Field(
+        None, description="'ruler' when the table carried a ruler (absolute positions); absent: the cross"
+    )
+    scale_u: float | None = Field(
+        None, description="standard uncertainty of ``scale`` (a ruler's: the micrometers against its pitch)"
+    )
