@@ -125,6 +125,46 @@ def _template(w: Windows, weight: FloatArray, coef: FloatArray, delta: FloatArra
     the graduation's centre by construction, and it is fitted at the samples' own phases: no
     smoothing and no bias from where the pixels happen to sample the period.
     """
+    total, sum_x, sum_v = _folded(w, weight, coef, delta)
+    seen = total > 0
+    weights = total[seen]
+    mean_x = sum_x[seen] / weights
+    mean_v = sum_v[seen] / weights
+    # normal equations of the cosine series from the moments M_j = sum w cos(2 pi j x), j <= 2K:
+    # sum w cos(k a) cos(l a) = (M_|k-l| + M_(k+l)) / 2 (a matrix-vector product, no matrix product)
+    harmonics = _resolvable(mean_x)
+    moments, rhs = _cosine_sums(mean_x, weights, mean_v, 2 * harmonics, harmonics)
+    k = np.arange(harmonics + 1)
+    normal_eq = 0.5 * (moments[np.abs(k[:, None] - k[None, :])] + moments[k[:, None] + k[None, :]])
+    normal_eq += np.eye(harmonics + 1) * 1e-10 * np.trace(normal_eq) / (harmonics + 1)
+    series = np.linalg.solve(normal_eq, rhs)
+    # tabulated by an inverse real FFT: grid[j] = sum_k series[k] cos(2 pi k j / TEMPLATE_SAMPLES)
+    spectrum = np.zeros(TEMPLATE_SAMPLES // 2 + 1)
+    spectrum[: harmonics + 1] = series
+    spectrum[1 : harmonics + 1] *= 0.5
+    return np.asarray(np.fft.irfft(spectrum, TEMPLATE_SAMPLES) * TEMPLATE_SAMPLES)
+
+
+def _folded(
+    w: Windows, weight: FloatArray, coef: FloatArray, delta: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The windows' bins normalised by each window's background and contrast (``coef``'s first four
+    columns) and folded about a graduation's centre into ``FOLD_BINS`` fine bins: per fine bin the
+    total weight (``weight`` times the contrast squared), and its sums of the folded phase and of the
+    normalised level. The compiled kernel (``_ckernels.ruler_profile``) does the same."""
+    ck = compiled()
+    if ck is not None:
+        out = np.empty((FOLD_BINS, 3))
+        ck.ruler_profile(
+            w.level,
+            w.s,
+            w.u,
+            np.ascontiguousarray(weight, dtype=np.float64),
+            np.ascontiguousarray(coef[:, :4], dtype=np.float64),
+            np.ascontiguousarray(delta, dtype=np.float64),
+            out,
+        )
+        return out[:, 0], out[:, 1], out[:, 2]
     contrast = coef[:, 2:3] + coef[:, 3:4] * w.u
     normal = (w.level - coef[:, 0:1] - coef[:, 1:2] * w.u) / np.where(np.abs(contrast) > 1e-9, contrast, 1e-9)
     phase = w.s + delta[:, None]
@@ -135,25 +175,30 @@ def _template(w: Windows, weight: FloatArray, coef: FloatArray, delta: FloatArra
     keep = (informed > 0) & np.isfinite(normal)
     x, v, wt = phase[keep], normal[keep], informed[keep]
     index = np.minimum((x * 2 * FOLD_BINS).astype(np.int64), FOLD_BINS - 1)
-    total = np.bincount(index, wt, minlength=FOLD_BINS)
-    seen = total > 0
-    mean_x = np.bincount(index, wt * x, minlength=FOLD_BINS)[seen] / total[seen]
-    mean_v = np.bincount(index, wt * v, minlength=FOLD_BINS)[seen] / total[seen]
-    # normal equations of the cosine series from the moments M_j = sum w cos(2 pi j x), j <= 2K:
-    # sum w cos(k a) cos(l a) = (M_|k-l| + M_(k+l)) / 2 (a matrix-vector product, no matrix product)
-    weights = total[seen]
-    harmonics = _resolvable(mean_x)
-    cosines = _cosines(mean_x, 2 * harmonics)
-    moments = cosines @ weights
-    k = np.arange(harmonics + 1)
-    normal_eq = 0.5 * (moments[np.abs(k[:, None] - k[None, :])] + moments[k[:, None] + k[None, :]])
-    normal_eq += np.eye(harmonics + 1) * 1e-10 * np.trace(normal_eq) / (harmonics + 1)
-    series = np.linalg.solve(normal_eq, cosines[: harmonics + 1] @ (weights * mean_v))
-    # tabulated by an inverse real FFT: grid[j] = sum_k series[k] cos(2 pi k j / TEMPLATE_SAMPLES)
-    spectrum = np.zeros(TEMPLATE_SAMPLES // 2 + 1)
-    spectrum[: harmonics + 1] = series
-    spectrum[1 : harmonics + 1] *= 0.5
-    return np.asarray(np.fft.irfft(spectrum, TEMPLATE_SAMPLES) * TEMPLATE_SAMPLES)
+    sums = [
+        np.bincount(index, values, minlength=FOLD_BINS).astype(np.float64) for values in (wt, wt * x, wt * v)
+    ]
+    return sums[0], sums[1], sums[2]
+
+
+def _cosine_sums(
+    x: FloatArray, weight: FloatArray, value: FloatArray, top: int, harmonics: int
+) -> tuple[FloatArray, FloatArray]:
+    """``sum weight cos(2 pi j x)`` for ``j = 0 .. top`` and ``sum weight value cos(2 pi k x)`` for
+    ``k = 0 .. harmonics`` (the compiled kernel ``_ckernels.ruler_cosines`` does the same)."""
+    ck = compiled()
+    if ck is not None:
+        moments, rhs = np.empty(top + 1), np.empty(harmonics + 1)
+        ck.ruler_cosines(
+            np.ascontiguousarray(x, dtype=np.float64),
+            np.ascontiguousarray(weight, dtype=np.float64),
+            np.ascontiguousarray(value, dtype=np.float64),
+            moments,
+            rhs,
+        )
+        return moments, rhs
+    cosines = _cosines(x, top)
+    return np.asarray(cosines @ weight), np.asarray(cosines[: harmonics + 1] @ (weight * value))
 
 
 def _resolvable(x: FloatArray) -> int:

@@ -19,7 +19,7 @@ from station.vision._ruler_bins import fold
 from station.vision._ruler_coarse import coarse_ruler
 from station.vision._ruler_layout import plan
 from station.vision._ruler_lens import lens_coordinates
-from station.vision._ruler_phase import _COSINE, _round, windows_from_bins
+from station.vision._ruler_phase import _COSINE, _cosine_sums, _folded, _round, _template, windows_from_bins
 
 pytestmark = pytest.mark.skipif(not available(), reason="the compiled kernels were not built")
 
@@ -76,6 +76,39 @@ def test_a_round_of_the_windows_gives_the_same_coefficients(views: list[np.ndarr
     assert got_res is not None
     assert_allclose(got, ref, rtol=1e-9, atol=1e-9)
     assert_allclose(got_res, ref_res, rtol=1e-9, atol=1e-9)
+
+
+def test_the_template_folds_and_fits_the_same_profile(views: list[np.ndarray]) -> None:
+    params = RulerParams()
+    image = views[1]
+    coarse = coarse_ruler(image, params.ruler, min_periods=5)
+    layout = plan(coarse.frame, coarse.period_px, params, image.shape, full=False)
+    bins = fold(image, coarse.frame, layout.strips)
+    w = windows_from_bins(
+        layout.rows(bins, layout.phase_rows), layout.window_starts, layout.window_lengths, layout.window_strip
+    )
+    delta = np.random.default_rng(1).uniform(-0.3, 0.3, len(w.n))
+    coef, _ = _round(w, w.n, _COSINE, delta, residual=False)
+    weight = w.n * (np.random.default_rng(2).uniform(size=w.n.shape) > 0.05)  # some bins dropped
+    with kernels("numpy"):
+        ref = _folded(w, weight, coef, delta)
+        ref_sums = _cosine_sums(
+            ref[1][ref[0] > 0] / ref[0][ref[0] > 0], ref[0][ref[0] > 0], ref[2][ref[0] > 0], 64, 32
+        )
+        ref_grid = _template(w, weight, coef, delta)
+    with kernels("c"):
+        got = _folded(w, weight, coef, delta)
+        got_sums = _cosine_sums(
+            ref[1][ref[0] > 0] / ref[0][ref[0] > 0], ref[0][ref[0] > 0], ref[2][ref[0] > 0], 64, 32
+        )
+        got_grid = _template(w, weight, coef, delta)
+    assert np.count_nonzero(ref[0]) > 500
+    for a, b in zip(got, ref, strict=True):
+        assert_allclose(a, b, rtol=1e-12, atol=1e-9)
+    for a, b in zip(got_sums, ref_sums, strict=True):
+        assert_allclose(a, b, rtol=1e-9, atol=1e-9 * float(np.abs(b).max()))
+    assert np.ptp(ref_grid) > 0.5  # a profile, not noise
+    assert_allclose(got_grid, ref_grid, atol=1e-9)
 
 
 @pytest.mark.parametrize("lens", [False, True])
