@@ -427,3 +427,119 @@ done:
     rrelease(&rb);
     return result;
 }
+
+/* The median of a[0..n-1] as numpy's (the middle one, or the mean of the two middle ones);
+ * reorders a. */
+static int cmp_double(const void *x, const void *y) {
+    const double a = *(const double *)x, b = *(const double *)y;
+    return (a > b) - (a < b);
+}
+
+static double median_inplace(double *a, Py_ssize_t n) {
+    qsort(a, (size_t)n, sizeof(double), cmp_double);
+    return n % 2 ? a[n / 2] : (a[n / 2 - 1] + a[n / 2]) / 2.0;
+}
+
+/* ruler_tip_contrasts(bins, strip, profile, noise_floor, out_contrast, out_t) -> None
+ *
+ * _ruler_tips.contrasts: bins (n, 6) float64, strip (n,) int64 in 0 .. k-1 (k = len(out_contrast)),
+ * profile (n,) float64; per strip the least-squares background and contrast of the profile in the
+ * bins' mean levels (weights n), twice: the second time without the bins more than 4 robust sigmas
+ * (at least noise_floor) off the first fit. out_contrast (k,) gets the contrast (NaN where a strip
+ * has fewer than 3 bins or a singular fit), out_t (k,) the strip's mean t (NaN when empty). Sums in
+ * the bins' order, as numpy's bincount. */
+PyObject *ruler_tip_contrasts(PyObject *self, PyObject *args) {
+    PyObject *o_b, *o_s, *o_p, *o_c, *o_t;
+    double floor_dn;
+    if (!PyArg_ParseTuple(args, "OOOdOO", &o_b, &o_s, &o_p, &floor_dn, &o_c, &o_t)) return NULL;
+    RBuf bb = {0}, sb = {0}, pb = {0}, cb = {0}, tb = {0};
+    PyObject *result = NULL;
+    double *work = NULL;
+    if (rget(o_p, &pb, 'd', -1, 0, 0, "profile") < 0) goto done;
+    const Py_ssize_t n = pb.view.len / 8;
+    if (rget(o_b, &bb, 'd', n * 6, 0, 0, "bins") < 0 || rget(o_c, &cb, 'd', -1, 1, 0, "out_contrast") < 0)
+        goto done;
+    const Py_ssize_t k = cb.view.len / 8;
+    if (rget(o_t, &tb, 'd', k, 1, 0, "out_t") < 0) goto done;
+    if (PyObject_GetBuffer(o_s, &sb.view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) goto done;
+    sb.held = 1;
+    const char *sf = sb.view.format ? sb.view.format : "B";
+    if (*sf == '<' || *sf == '=' || *sf == '@') sf++;
+    if (sb.view.itemsize != 8 || sb.view.len != n * 8 || (*sf != 'q' && *sf != 'l')) {
+        PyErr_SetString(PyExc_TypeError, "ruler_tip_contrasts: strip must be (n,) int64");
+        goto done;
+    }
+    const double *b = (const double *)bb.view.buf, *prof = (const double *)pb.view.buf;
+    const int64_t *strip = (const int64_t *)sb.view.buf;
+    double *contrast = (double *)cb.view.buf, *tmean = (double *)tb.view.buf;
+    for (Py_ssize_t i = 0; i < n; i++)
+        if (strip[i] < 0 || strip[i] >= k) {
+            PyErr_SetString(PyExc_ValueError, "ruler_tip_contrasts: strip out of range");
+            goto done;
+        }
+    /* per strip: s0 s1 s2 r0 r1 count background; per bin: level weight residual; scratch */
+    work = (double *)PyMem_Malloc(((size_t)k * 7 + (size_t)n * 4 + 1) * sizeof(double));
+    if (!work) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    double *s0 = work, *s1 = s0 + k, *s2 = s1 + k, *r0 = s2 + k, *r1 = r0 + k, *cnt = r1 + k, *bg = cnt + k;
+    double *level = bg + k, *weight = level + n, *res = weight + n, *scratch = res + n;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        const double nn = b[i * 6];
+        level[i] = b[i * 6 + 1] / (nn > 1.0 ? nn : 1.0);
+        weight[i] = nn;
+    }
+    for (int round = 0; round < 2; round++) {
+        memset(s0, 0, (size_t)k * 6 * sizeof(double));
+        for (Py_ssize_t i = 0; i < n; i++) {
+            const Py_ssize_t j = (Py_ssize_t)strip[i];
+            const double w = weight[i], p = prof[i], wp = w * p, wl = w * level[i];
+            s0[j] += w;
+            s1[j] += wp;
+            s2[j] += wp * p;
+            r0[j] += wl;
+            r1[j] += wl * p;
+            cnt[j] += w > 0 ? 1.0 : 0.0;
+        }
+        for (Py_ssize_t j = 0; j < k; j++) {
+            const double det = s0[j] * s2[j] - s1[j] * s1[j];
+            const double ref = s0[j] * s2[j] > 1e-300 ? s0[j] * s2[j] : 1e-300;
+            if (cnt[j] >= 3 && fabs(det) > 1e-12 * ref) {
+                bg[j] = (s2[j] * r0[j] - s1[j] * r1[j]) / det;
+                contrast[j] = (s0[j] * r1[j] - s1[j] * r0[j]) / det;
+            } else {
+                bg[j] = NAN;
+                contrast[j] = NAN;
+            }
+        }
+        Py_ssize_t m = 0;
+        for (Py_ssize_t i = 0; i < n; i++) {
+            const Py_ssize_t j = (Py_ssize_t)strip[i];
+            res[i] = (level[i] - bg[j] - contrast[j] * prof[i]) * sqrt(b[i * 6]);
+            if (b[i * 6] > 0 && isfinite(res[i])) scratch[m++] = fabs(res[i]);
+        }
+        double spread = m ? 1.4826 * median_inplace(scratch, m) : 0.0;
+        if (!(spread > floor_dn)) spread = floor_dn;
+        for (Py_ssize_t i = 0; i < n; i++) {
+            const int ok = b[i * 6] > 0 && isfinite(res[i]);
+            weight[i] = ok && fabs(res[i]) < 4.0 * spread ? b[i * 6] : 0.0;
+        }
+    }
+    memset(s0, 0, (size_t)k * 2 * sizeof(double));
+    for (Py_ssize_t i = 0; i < n; i++) {
+        s0[strip[i]] += b[i * 6];
+        s1[strip[i]] += b[i * 6 + 3];
+    }
+    for (Py_ssize_t j = 0; j < k; j++) tmean[j] = s1[j] / (s0[j] > 0 ? s0[j] : NAN);
+    Py_INCREF(Py_None);
+    result = Py_None;
+done:
+    PyMem_Free(work);
+    rrelease(&bb);
+    rrelease(&sb);
+    rrelease(&pb);
+    rrelease(&cb);
+    rrelease(&tb);
+    return result;
+}

@@ -18,6 +18,8 @@ import numpy as np
 import numpy.typing as npt
 from scipy.special import ndtr
 
+from station.vision._kernels import compiled
+
 FloatArray = npt.NDArray[np.float64]
 
 
@@ -76,7 +78,23 @@ def contrasts(
     -------
     contrast, t : ndarray, ndarray
         Per strip (NaN where a strip has too few bins).
+
+    Notes
+    -----
+    The compiled kernel (``_ckernels.ruler_tip_contrasts``) does the same; this is its reference.
     """
+    ck = compiled()
+    if ck is not None:
+        contrast, t = np.empty(strips), np.empty(strips)
+        ck.ruler_tip_contrasts(
+            np.ascontiguousarray(bins, dtype=np.float64),
+            np.ascontiguousarray(strip, dtype=np.int64),
+            np.ascontiguousarray(profile, dtype=np.float64),
+            float(noise_floor),
+            contrast,
+            t,
+        )
+        return contrast, t
     n = bins[:, 0]
     level = bins[:, 1] / np.maximum(n, 1.0)
     weight = n.copy()

@@ -20,6 +20,7 @@ from station.vision._ruler_coarse import coarse_ruler
 from station.vision._ruler_layout import plan
 from station.vision._ruler_lens import lens_coordinates
 from station.vision._ruler_phase import _COSINE, _cosine_sums, _folded, _round, _template, windows_from_bins
+from station.vision._ruler_tips import contrasts
 
 pytestmark = pytest.mark.skipif(not available(), reason="the compiled kernels were not built")
 
@@ -109,6 +110,29 @@ def test_the_template_folds_and_fits_the_same_profile(views: list[np.ndarray]) -
         assert_allclose(a, b, rtol=1e-9, atol=1e-9 * float(np.abs(b).max()))
     assert np.ptp(ref_grid) > 0.5  # a profile, not noise
     assert_allclose(got_grid, ref_grid, atol=1e-9)
+
+
+def test_the_tip_zones_give_the_same_contrasts(views: list[np.ndarray]) -> None:
+    params = RulerParams()
+    for image in views:
+        coarse = coarse_ruler(image, params.ruler, min_periods=5)
+        layout = plan(coarse.frame, coarse.period_px, params, image.shape, full=True)
+        for zone in layout.tips:
+            assert zone is not None
+            bins = fold(image, coarse.frame, zone)
+            rows = len(zone.table)
+            strip = np.repeat(np.arange(rows), zone.table[:, 4].astype(np.int64))
+            s = bins[:, 2] / np.maximum(bins[:, 0], 1.0)
+            profile = np.cos(2 * np.pi * s)  # the fundamental: the zones' strips see it where the lines are
+            with kernels("numpy"):
+                ref = contrasts(bins, strip, rows, profile, 0.3)
+            with kernels("c"):
+                got = contrasts(bins, strip, rows, profile, 0.3)
+            assert np.nanmax(np.abs(ref[0])) > 5.0  # the lines seen
+            assert np.isnan(ref[0]).sum() < rows
+            for a, b in zip(got, ref, strict=True):
+                assert_array_equal(np.isnan(a), np.isnan(b))
+                assert_allclose(a, b, rtol=1e-9, atol=1e-9)
 
 
 @pytest.mark.parametrize("lens", [False, True])
