@@ -428,16 +428,42 @@ done:
     return result;
 }
 
-/* The median of a[0..n-1] as numpy's (the middle one, or the mean of the two middle ones);
- * reorders a. */
-static int cmp_double(const void *x, const void *y) {
-    const double a = *(const double *)x, b = *(const double *)y;
-    return (a > b) - (a < b);
+/* The k-th smallest of a[0..n-1] (quickselect, median-of-three pivots); reorders a so that
+ * a[0..k-1] <= a[k] <= a[k+1..n-1]. */
+static double select_kth(double *a, Py_ssize_t n, Py_ssize_t k) {
+    Py_ssize_t lo = 0, hi = n - 1;
+    while (hi > lo) {
+        const Py_ssize_t mid = lo + (hi - lo) / 2;
+        double x = a[lo], y = a[mid], z = a[hi];
+        const double pivot = x < y ? (y < z ? y : (x < z ? z : x)) : (x < z ? x : (y < z ? z : y));
+        Py_ssize_t i = lo, j = hi;
+        while (i <= j) {
+            while (a[i] < pivot) i++;
+            while (a[j] > pivot) j--;
+            if (i <= j) {
+                const double t = a[i];
+                a[i] = a[j];
+                a[j] = t;
+                i++;
+                j--;
+            }
+        }
+        if (k <= j) hi = j;
+        else if (k >= i) lo = i;
+        else break;
+    }
+    return a[k];
 }
 
+/* The median of a[0..n-1] (no NaN) as numpy's: the middle one, or the mean of the two middle ones;
+ * reorders a. */
 static double median_inplace(double *a, Py_ssize_t n) {
-    qsort(a, (size_t)n, sizeof(double), cmp_double);
-    return n % 2 ? a[n / 2] : (a[n / 2 - 1] + a[n / 2]) / 2.0;
+    const double upper = select_kth(a, n, n / 2);
+    if (n % 2) return upper;
+    double lower = a[0];
+    for (Py_ssize_t i = 1; i < n / 2; i++)
+        if (a[i] > lower) lower = a[i];
+    return (lower + upper) / 2.0;
 }
 
 /* ruler_tip_contrasts(bins, strip, profile, noise_floor, out_contrast, out_t) -> None
