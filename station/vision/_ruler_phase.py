@@ -294,38 +294,36 @@ def window_phases(
 ) -> WindowPhases:
     """Fit every window's phase against the shared template (module docstring).
 
-    ``quick``: no outliers dropped and one template only (the first, coarse pass).
+    ``quick``: one template and one round against it, no outliers dropped (the first, coarse pass:
+    its phases only place the second pass's bins, whose own fit moves them again by some 0.03 px).
     """
     n = w.n
     delta = np.zeros(len(n))
-    coef = np.zeros((len(n), 6))
-    for _ in range(1):  # the fundamental: dark graduations at whole s + delta
-        coef, _ = _round(w, n, _COSINE, delta, residual=False)
-        delta = delta + np.nan_to_num(np.arctan2(-2 * np.pi * coef[:, 4], -coef[:, 2]) / (2 * np.pi))
+    # the fundamental: dark graduations at whole s + delta
+    coef, _ = _round(w, n, _COSINE, delta, residual=False)
+    delta = delta + np.nan_to_num(np.arctan2(-2 * np.pi * coef[:, 4], -coef[:, 2]) / (2 * np.pi))
     amp = np.nan_to_num(np.hypot(coef[:, 2], 2 * np.pi * coef[:, 4]))
     centre = np.angle(np.sum(amp**2 * n.sum(axis=1) * np.exp(2j * np.pi * delta))) / (2 * np.pi)
     delta = centre + ((delta - centre + 0.5) % 1.0 - 0.5)
     start = np.column_stack([coef[:, 0], coef[:, 1], -amp, np.zeros_like(amp)])
     grid = _template(w, n, start, delta)
-    weight = n
-    noise = noise_floor_dn
-    # a round against the first template; a second with the bins' residuals: outliers dropped and
-    # the template made again from what is left; two more rounds against it
-    coef, _ = _round(w, n, grid, delta, residual=False)
-    delta = delta + _step(coef)
-    if quick:
+    if quick:  # one round against the template: a second would move the phases by some 1e-4 px
         coef, _ = _round(w, n, grid, delta, residual=False)
         delta = delta + _step(coef)
-        return _phases(coef, delta, grid, noise, 0)
+        return _phases(coef, delta, grid, noise_floor_dn, 0)
+    # a round against the first template; a second with the bins' residuals: outliers dropped and
+    # the template made again from what is left; one more round against it (a further round moves
+    # the windows' phases by some 2e-7 px)
+    coef, _ = _round(w, n, grid, delta, residual=False)
+    delta = delta + _step(coef)
     coef, residual = _round(w, n, grid, delta, residual=True)
     assert residual is not None
     noise = max(1.4826 * float(np.median(np.abs(residual[n > 0]))), noise_floor_dn)
     weight = n * (np.abs(residual) < outlier_sigma * noise)
     delta = delta + _step(coef)
     grid = _template(w, weight, coef, delta)
-    for _ in range(2):
-        coef, _ = _round(w, weight, grid, delta, residual=False)
-        delta = delta + _step(coef)
+    coef, _ = _round(w, weight, grid, delta, residual=False)
+    delta = delta + _step(coef)
     return _phases(coef, delta, grid, noise, int(np.count_nonzero((weight == 0) & (n > 0))))
 
 
