@@ -569,3 +569,95 @@ done:
     rrelease(&tb);
     return result;
 }
+
+/* The blurred step of a tip zone at parameters p (t_e, sigma, plateau, slope): residuals r = m - model
+ * and the Jacobian of the model (n x 4, row-major), as _ruler_tips.fit_tip's residual(). */
+static void tip_model(const double *t, const double *m, Py_ssize_t n, const double *p, double sign, double *r,
+                      double *jac) {
+    const double inv_sqrt2pi = 0.3989422804014327;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        const double z = sign * (p[0] - t[i]) / p[1];
+        const double step = 0.5 * erfc(-z / 1.4142135623730951);
+        const double dens = exp(-0.5 * z * z) * inv_sqrt2pi;
+        const double level = p[2] + p[3] * (t[i] - p[0]);
+        double *j = jac + i * 4;
+        j[0] = level * dens * sign / p[1] - p[3] * step;
+        j[1] = -level * dens * z / p[1];
+        j[2] = step;
+        j[3] = (t[i] - p[0]) * step;
+        r[i] = m[i] - level * step;
+    }
+}
+
+/* ruler_tip_fit(t, m, params, sign, blur) -> None
+ *
+ * _ruler_tips.fit_tip's Levenberg-Marquardt loop: the model (p0 + p3 (t - t_e)) Phi(sign (t_e - t) /
+ * sigma) fitted to m at t (n >= 1 float64 each), from params (4 float64: t_e, sigma, plateau, slope),
+ * which gets the result; sigma kept at least 0.1 blur. At most 30 steps, stopping when t_e moves by
+ * less than 1e-6 or the damping passes 1e8. */
+PyObject *ruler_tip_fit(PyObject *self, PyObject *args) {
+    PyObject *o_t, *o_m, *o_p;
+    double sign, blur;
+    if (!PyArg_ParseTuple(args, "OOOdd", &o_t, &o_m, &o_p, &sign, &blur)) return NULL;
+    RBuf tb = {0}, mb = {0}, pb = {0};
+    PyObject *result = NULL;
+    double *work = NULL;
+    if (rget(o_t, &tb, 'd', -1, 0, 0, "t") < 0) goto done;
+    const Py_ssize_t n = tb.view.len / 8;
+    if (rget(o_m, &mb, 'd', n, 0, 0, "m") < 0 || rget(o_p, &pb, 'd', 4, 1, 0, "params") < 0) goto done;
+    work = (double *)PyMem_Malloc((size_t)n * 10 * sizeof(double) + 1);
+    if (!work) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    const double *t = (const double *)tb.view.buf, *m = (const double *)mb.view.buf;
+    double *params = (double *)pb.view.buf;
+    double *r = work, *jac = r + n, *r_new = jac + 4 * n, *jac_new = r_new + n;
+    tip_model(t, m, n, params, sign, r, jac);
+    double cost = 0.0, damping = 1e-3;
+    for (Py_ssize_t i = 0; i < n; i++) cost += r[i] * r[i];
+    for (int it = 0; it < 30; it++) {
+        double a[16], b[4];
+        for (int u = 0; u < 4; u++) {
+            for (int v = 0; v < 4; v++) {
+                double acc = 0.0;
+                for (Py_ssize_t i = 0; i < n; i++) acc += jac[i * 4 + u] * jac[i * 4 + v];
+                a[u * 4 + v] = acc;
+            }
+            double acc = 0.0;
+            for (Py_ssize_t i = 0; i < n; i++) acc += jac[i * 4 + u] * r[i];
+            b[u] = acc;
+        }
+        for (int u = 0; u < 4; u++) a[u * 4 + u] += damping * (a[u * 4 + u] + 1e-300);
+        if (solve_small(a, b, 4) != 0) break;
+        double trial[4];
+        for (int u = 0; u < 4; u++) trial[u] = params[u] + b[u];
+        trial[1] = fabs(trial[1]) > 0.1 * blur ? fabs(trial[1]) : 0.1 * blur;
+        tip_model(t, m, n, trial, sign, r_new, jac_new);
+        double cost_new = 0.0;
+        for (Py_ssize_t i = 0; i < n; i++) cost_new += r_new[i] * r_new[i];
+        if (cost_new < cost) {
+            memcpy(params, trial, sizeof(trial));
+            double *swap = r;
+            r = r_new;
+            r_new = swap;
+            swap = jac;
+            jac = jac_new;
+            jac_new = swap;
+            cost = cost_new;
+            damping *= 0.3;
+            if (fabs(b[0]) < 1e-6) break;
+        } else {
+            damping *= 10.0;
+            if (damping > 1e8) break;
+        }
+    }
+    Py_INCREF(Py_None);
+    result = Py_None;
+done:
+    PyMem_Free(work);
+    rrelease(&tb);
+    rrelease(&mb);
+    rrelease(&pb);
+    return result;
+}

@@ -148,6 +148,10 @@ def fit_tip(
         i = int(below[0])
         te = float(t[i - 1] + (0.5 - q[i - 1]) * (t[i] - t[i - 1]) / (q[i] - q[i - 1]))
     params = np.array([te, blur, plateau, 0.0])
+    ck = compiled()
+    if ck is not None:  # the same loop (``_ckernels.ruler_tip_fit``)
+        ck.ruler_tip_fit(np.ascontiguousarray(t), np.ascontiguousarray(m), params, sign, float(blur))
+        return float(params[0]), float(params[1])
 
     def residual(p: FloatArray) -> tuple[FloatArray, FloatArray]:
         z = sign * (p[0] - t) / p[1]

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
+from scipy.special import ndtr
 
 from sim._render_camera import CameraSpec, pose_for_center_px
 from sim.ruler import render_ruler
@@ -20,7 +21,7 @@ from station.vision._ruler_coarse import coarse_ruler
 from station.vision._ruler_layout import plan
 from station.vision._ruler_lens import lens_coordinates
 from station.vision._ruler_phase import _COSINE, _cosine_sums, _folded, _round, _template, windows_from_bins
-from station.vision._ruler_tips import contrasts
+from station.vision._ruler_tips import contrasts, fit_tip
 
 pytestmark = pytest.mark.skipif(not available(), reason="the compiled kernels were not built")
 
@@ -133,6 +134,21 @@ def test_the_tip_zones_give_the_same_contrasts(views: list[np.ndarray]) -> None:
             for a, b in zip(got, ref, strict=True):
                 assert_array_equal(np.isnan(a), np.isnan(b))
                 assert_allclose(a, b, rtol=1e-9, atol=1e-9)
+
+
+@pytest.mark.parametrize("upper", [False, True])
+def test_a_tip_zone_s_step_fits_the_same(upper: bool) -> None:
+    rng = np.random.default_rng(3)
+    t = np.linspace(-2.0, -1.4, 19) if not upper else np.linspace(1.4, 2.0, 19)
+    edge, sigma = (-1.63, 0.03) if not upper else (1.61, 0.04)
+    sign = 1.0 if upper else -1.0
+    m = (40.0 + 3.0 * (t - edge)) * ndtr(sign * (edge - t) / sigma) + rng.normal(0.0, 0.5, len(t))
+    with kernels("numpy"):
+        ref = fit_tip(t, m, -1.6 if not upper else 1.6, 0.03, inside_below=upper)
+    with kernels("c"):
+        got = fit_tip(t, m, -1.6 if not upper else 1.6, 0.03, inside_below=upper)
+    assert abs(ref[0] - edge) < 0.01  # the step found
+    assert_allclose(got, ref, rtol=1e-9, atol=1e-10)
 
 
 @pytest.mark.parametrize("lens", [False, True])
