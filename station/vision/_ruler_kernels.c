@@ -661,3 +661,160 @@ done:
     rrelease(&pb);
     return result;
 }
+
+/* Invert the p x p matrix a (row-major) into inv by Gauss-Jordan elimination with partial
+ * pivoting; a is destroyed. 0 on success, -1 when singular. */
+static int invert_small(double *a, double *inv, int p) {
+    for (int i = 0; i < p; i++)
+        for (int j = 0; j < p; j++) inv[i * p + j] = i == j ? 1.0 : 0.0;
+    for (int col = 0; col < p; col++) {
+        int piv = col;
+        for (int r = col + 1; r < p; r++)
+            if (fabs(a[r * p + col]) > fabs(a[piv * p + col])) piv = r;
+        if (a[piv * p + col] == 0.0 || !isfinite(a[piv * p + col])) return -1;
+        if (piv != col)
+            for (int j = 0; j < p; j++) {
+                double tmp = a[col * p + j];
+                a[col * p + j] = a[piv * p + j];
+                a[piv * p + j] = tmp;
+                tmp = inv[col * p + j];
+                inv[col * p + j] = inv[piv * p + j];
+                inv[piv * p + j] = tmp;
+            }
+        const double d = a[col * p + col];
+        for (int j = 0; j < p; j++) {
+            a[col * p + j] /= d;
+            inv[col * p + j] /= d;
+        }
+        for (int r = 0; r < p; r++) {
+            if (r == col) continue;
+            const double f = a[r * p + col];
+            if (f == 0.0) continue;
+            for (int j = 0; j < p; j++) {
+                a[r * p + j] -= f * a[col * p + j];
+                inv[r * p + j] -= f * inv[col * p + j];
+            }
+        }
+    }
+    return 0;
+}
+
+/* ruler_correction(moments, delta, info, noise, perspective, tukey, rounds, out_e, out_cov,
+ *                  out_residual) -> (s_centre, used, scale), or None when the normal matrix is singular
+ *
+ * _ruler_phase.fit_correction: the frame's correction (5 terms) fitted to the windows' phases
+ * delta (W) at their moments (W, 5: n, mean s, mean t, var s, cov s t), weighted by info / noise^2,
+ * the perspective terms held by a prior of standard deviation perspective, Tukey-robust (constant
+ * tukey) over rounds rounds. out_e (5), out_cov (25: the covariance times scale^2), out_residual (W). */
+PyObject *ruler_correction(PyObject *self, PyObject *args) {
+    PyObject *o_m, *o_d, *o_i, *o_e, *o_c, *o_r;
+    double noise, perspective, tukey;
+    int rounds;
+    if (!PyArg_ParseTuple(args, "OOOdddiOOO", &o_m, &o_d, &o_i, &noise, &perspective, &tukey, &rounds, &o_e, &o_c,
+                          &o_r))
+        return NULL;
+    RBuf mb = {0}, db = {0}, ib = {0}, eb = {0}, cb = {0}, rb = {0};
+    PyObject *result = NULL;
+    double *work = NULL;
+    if (rget(o_d, &db, 'd', -1, 0, 0, "delta") < 0) goto done;
+    const Py_ssize_t nw = db.view.len / 8;
+    if (rget(o_m, &mb, 'd', nw * 5, 0, 0, "moments") < 0 || rget(o_i, &ib, 'd', nw, 0, 0, "info") < 0 ||
+        rget(o_e, &eb, 'd', 5, 1, 0, "out_e") < 0 || rget(o_c, &cb, 'd', 25, 1, 0, "out_cov") < 0 ||
+        rget(o_r, &rb, 'd', nw, 1, 0, "out_residual") < 0)
+        goto done;
+    const double *mo = (const double *)mb.view.buf, *delta = (const double *)db.view.buf;
+    const double *info = (const double *)ib.view.buf;
+    double *e = (double *)eb.view.buf, *cov = (double *)cb.view.buf, *residual = (double *)rb.view.buf;
+    work = (double *)PyMem_Malloc(((size_t)nw * 10 + 1) * sizeof(double));
+    if (!work) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    double *sigma = work, *robust = sigma + nw, *design = robust + nw, *scratch = design + 5 * nw;
+    unsigned char any_good = 0;
+    double sw = 0.0, sws = 0.0;
+    for (Py_ssize_t i = 0; i < nw; i++) {
+        const int good = mo[i * 5] > 0 && info[i] > 0;
+        sigma[i] = noise / sqrt(good ? info[i] : 1.0);
+        robust[i] = good ? 1.0 : 0.0;
+        if (good) {
+            const double w = 1.0 / (sigma[i] * sigma[i]);
+            sw += w;
+            sws += mo[i * 5 + 1] * w;
+            any_good = 1;
+        }
+    }
+    const double s_centre = any_good ? sws / sw : NAN;
+    for (Py_ssize_t i = 0; i < nw; i++) {
+        const double u = mo[i * 5 + 1] - s_centre, t = mo[i * 5 + 2];
+        double *d = design + i * 5;
+        d[0] = 1.0;
+        d[1] = u;
+        d[2] = t;
+        d[3] = -(u * u + mo[i * 5 + 3]);
+        d[4] = -(u * t + mo[i * 5 + 4]);
+    }
+    const double prior = 1.0 / (perspective * perspective);
+    double scale = 1.0;
+    memset(e, 0, 5 * sizeof(double));
+    memset(cov, 0, 25 * sizeof(double));
+    memset(residual, 0, (size_t)nw * sizeof(double));
+    for (int round = 0; round < rounds; round++) {
+        double a[25] = {0}, b[5] = {0};
+        for (Py_ssize_t i = 0; i < nw; i++) {
+            const double w = robust[i] / (sigma[i] * sigma[i]);
+            if (w == 0.0) continue;
+            const double *d = design + i * 5;
+            for (int u = 0; u < 5; u++) {
+                for (int v = u; v < 5; v++) a[u * 5 + v] += d[u] * (d[v] * w);
+                b[u] += d[u] * (w * delta[i]);
+            }
+        }
+        for (int u = 0; u < 5; u++)
+            for (int v = 0; v < u; v++) a[u * 5 + v] = a[v * 5 + u];
+        a[18] += prior;
+        a[24] += prior;
+        if (invert_small(a, cov, 5) != 0) {
+            Py_INCREF(Py_None);
+            result = Py_None;
+            goto done;
+        }
+        for (int u = 0; u < 5; u++) {
+            double acc = 0.0;
+            for (int v = 0; v < 5; v++) acc += cov[u * 5 + v] * b[v];
+            e[u] = acc;
+        }
+        Py_ssize_t used = 0, m = 0;
+        for (Py_ssize_t i = 0; i < nw; i++) {
+            const double *d = design + i * 5;
+            double fit = 0.0;
+            for (int u = 0; u < 5; u++) fit += d[u] * e[u];
+            residual[i] = delta[i] - fit;
+            if (robust[i] > 0) used++;
+            if (mo[i * 5] > 0 && info[i] > 0) scratch[m++] = fabs(residual[i] / sigma[i]);
+        }
+        scale = 1.0;
+        if (used && m) {
+            const double spread = 1.4826 * median_inplace(scratch, m);
+            if (spread > 1.0) scale = spread;
+        }
+        for (Py_ssize_t i = 0; i < nw; i++) {
+            const double r = residual[i] / sigma[i] / (tukey * scale);
+            const int good = mo[i * 5] > 0 && info[i] > 0;
+            robust[i] = good && fabs(r) < 1 ? (1 - r * r) * (1 - r * r) : 0.0;
+        }
+    }
+    Py_ssize_t used = 0;
+    for (Py_ssize_t i = 0; i < nw; i++) used += robust[i] > 0;
+    for (int k = 0; k < 25; k++) cov[k] *= scale * scale;
+    result = Py_BuildValue("(dnd)", s_centre, used, scale);
+done:
+    PyMem_Free(work);
+    rrelease(&mb);
+    rrelease(&db);
+    rrelease(&ib);
+    rrelease(&eb);
+    rrelease(&cb);
+    rrelease(&rb);
+    return result;
+}

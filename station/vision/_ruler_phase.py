@@ -374,6 +374,32 @@ def fit_correction(
     ``tan(tau) P / f`` per period. It only keeps them in bounds where the view cannot tell them
     (a short stretch); elsewhere the windows decide.
     """
+    ck = compiled()
+    if ck is not None:  # the same fit (``_ckernels.ruler_correction``)
+        fitted, moments, residuals = np.empty(5), np.empty(25), np.empty(len(phases.delta))
+        out = ck.ruler_correction(
+            np.ascontiguousarray(w.moments, dtype=np.float64),
+            np.ascontiguousarray(phases.delta, dtype=np.float64),
+            np.ascontiguousarray(phases.info, dtype=np.float64),
+            float(phases.noise_dn),
+            float(perspective),
+            TUKEY_C,
+            rounds,
+            fitted,
+            moments,
+            residuals,
+        )
+        if out is None:
+            raise np.linalg.LinAlgError("Singular matrix")
+        s_centre, used, scale = out
+        return FrameCorrection(
+            e=fitted,
+            s_centre=s_centre,
+            covariance=moments.reshape(5, 5),
+            residual=residuals,
+            used=used,
+            scale=scale,
+        )
     m = w.moments
     good = (m[:, 0] > 0) & (phases.info > 0)
     sigma = phases.noise_dn / np.sqrt(np.where(good, phases.info, 1.0))

@@ -20,7 +20,16 @@ from station.vision._ruler_bins import fold
 from station.vision._ruler_coarse import coarse_ruler
 from station.vision._ruler_layout import plan
 from station.vision._ruler_lens import lens_coordinates
-from station.vision._ruler_phase import _COSINE, _cosine_sums, _folded, _round, _template, windows_from_bins
+from station.vision._ruler_phase import (
+    _COSINE,
+    _cosine_sums,
+    _folded,
+    _round,
+    _template,
+    fit_correction,
+    window_phases,
+    windows_from_bins,
+)
 from station.vision._ruler_tips import contrasts, fit_tip
 
 pytestmark = pytest.mark.skipif(not available(), reason="the compiled kernels were not built")
@@ -149,6 +158,32 @@ def test_a_tip_zone_s_step_fits_the_same(upper: bool) -> None:
         got = fit_tip(t, m, -1.6 if not upper else 1.6, 0.03, inside_below=upper)
     assert abs(ref[0] - edge) < 0.01  # the step found
     assert_allclose(got, ref, rtol=1e-9, atol=1e-10)
+
+
+def test_the_frame_s_correction_is_fitted_the_same(views: list[np.ndarray]) -> None:
+    params = RulerParams()
+    for image in views:
+        coarse = coarse_ruler(image, params.ruler, min_periods=5)
+        layout = plan(coarse.frame, coarse.period_px, params, image.shape, full=True)
+        bins = fold(image, coarse.frame, layout.strips)
+        w = windows_from_bins(
+            layout.rows(bins, layout.phase_rows),
+            layout.window_starts,
+            layout.window_lengths,
+            layout.window_strip,
+        )
+        phases = window_phases(w, outlier_sigma=3.0, noise_floor_dn=0.3)
+        with kernels("numpy"):
+            ref = fit_correction(w, phases, perspective=3e-5)
+        with kernels("c"):
+            got = fit_correction(w, phases, perspective=3e-5)
+        assert np.abs(ref.e[:3]).max() > 1e-6  # the coarse frame corrected
+        assert 3 <= ref.used == got.used
+        assert_allclose(got.e, ref.e, rtol=1e-9, atol=1e-11)
+        assert_allclose(got.covariance, ref.covariance, rtol=1e-9, atol=1e-20)
+        assert_allclose(got.residual, ref.residual, rtol=1e-9, atol=1e-11)
+        assert got.s_centre == pytest.approx(ref.s_centre, rel=1e-12)
+        assert got.scale == pytest.approx(ref.scale, rel=1e-9)
 
 
 @pytest.mark.parametrize("lens", [False, True])
