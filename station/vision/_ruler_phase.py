@@ -376,7 +376,7 @@ def fit_correction(
     """
     ck = compiled()
     if ck is not None:  # the same fit (``_ckernels.ruler_correction``)
-        fitted, moments, residuals = np.empty(5), np.empty(25), np.empty(len(phases.delta))
+        fitted, covariance, residuals = np.empty(5), np.empty(25), np.empty(len(phases.delta))
         out = ck.ruler_correction(
             np.ascontiguousarray(w.moments, dtype=np.float64),
             np.ascontiguousarray(phases.delta, dtype=np.float64),
@@ -386,7 +386,7 @@ def fit_correction(
             TUKEY_C,
             rounds,
             fitted,
-            moments,
+            covariance,
             residuals,
         )
         if out is None:
@@ -395,7 +395,7 @@ def fit_correction(
         return FrameCorrection(
             e=fitted,
             s_centre=s_centre,
-            covariance=moments.reshape(5, 5),
+            covariance=covariance.reshape(5, 5),
             residual=residuals,
             used=used,
             scale=scale,
