@@ -13,7 +13,9 @@ uniformly inside the measurement's envelope, ``--count`` per preset):
   twin's exact rendering over the pose, grey levels and noise), beside the measured error;
 * the scatter of the position over repeated frames of one view (the same pose, ``--repeats`` noise
   draws of the preset) beside that view's Cramer-Rao bound: the noise limit against the noise
-  measured, with no error of the pose or the ruler's defects in it;
+  measured, with no error of the pose or the ruler's defects in it; and beside both the closed
+  form of ``station.vision._ruler_bound`` (the graduations' edges alone: contrast, blur, noise,
+  graduations in view);
 * time per 640x480 frame with the compiled kernels (decode excluded), target <= 2 ms, and with the
   numpy reference: wall clock (``perf_counter``, minimum and median over every frame of every
   round) and the process's CPU time (median; less disturbed by other work on a shared machine).
@@ -47,6 +49,7 @@ from sim.ruler import RulerTruth, render_ruler, ruler_coverage, ruler_truth
 from sim.ruler_imageset import load_ruler_truth, render_ruler_random_set
 from station.vision import MeasurementError, RulerCode, RulerParams, RulerSpec, measure_ruler
 from station.vision._kernels import compiled, kernels
+from station.vision._ruler_bound import ruler_view_bound_px
 
 UM_PER_PX = 10.0
 TARGETS = {"nominal": {"mean": 0.002, "max": 0.006}, "hard": {"mean": 0.01}}
@@ -243,6 +246,7 @@ def noise_scatter(
     camera = CameraSpec()
     with_model = RulerParams(camera_matrix=camera.matrix().tolist(), dist_coeffs=[0.0] * 5)
     errors: dict[str, list[float]] = {"origin": [], "principal": []}
+    periods: list[float] = []
     for k in range(repeats):
         image, truth = render_ruler(
             pose, anchor_mm=anchor_mm, preset=preset, rng=np.random.default_rng(seed + k)
@@ -250,6 +254,7 @@ def noise_scatter(
         for key, params in (("origin", RulerParams()), ("principal", with_model)):
             m = measure_ruler(image, params)
             errors[key].append(_errors(m, truth, key == "principal")[0])
+            periods.append(float(m.extra["periods_in_view"]))
     bound = dict(zip(("origin", "principal"), crb_position_px(pose, anchor_mm, preset), strict=True))
     out: dict[str, Any] = {"repeats": repeats, "preset": preset}
     for key, errs in errors.items():
@@ -262,7 +267,25 @@ def noise_scatter(
         }
     # the sample standard deviation's own relative uncertainty (chi distribution, repeats - 1 dof)
     out["scatter_relative_u"] = 1.0 / math.sqrt(2.0 * (repeats - 1))
+    out["closed_form_px"] = closed_form_bound_px(preset, truth.px_per_mm, float(np.median(periods)))
     return out
+
+
+def closed_form_bound_px(preset: str, px_per_mm: float, periods_in_view: float) -> float:
+    """``station.vision``'s closed-form bound (the graduations' edges alone, everything else known)
+    for the preset's contrast, blur and noise (read, shot at the mid grey level, quantisation)."""
+    p = get_preset(preset)
+    mid = 0.5 * (p.land_level_dn + p.paint_level_dn)
+    noise = math.sqrt(p.read_noise_dn**2 + p.shot_noise_gain_dn_per_e * mid + 1.0 / 12.0)
+    spec = RulerSpec()
+    return ruler_view_bound_px(
+        spec,
+        px_per_mm=px_per_mm,
+        graduated_mm=periods_in_view * spec.pitch_mm,
+        contrast_dn=p.land_level_dn - p.paint_level_dn,
+        noise_dn=noise,
+        blur_sigma_px=p.blur_sigma_px,
+    )
 
 
 #: The views of the repeatability figures: (centre x, centre y, rotation, tilt x, tilt y, anchor).
@@ -364,7 +387,8 @@ def report_text(results: dict[str, Any]) -> str:
                 f"  scatter over {view['repeats']} noise draws of one view (px, 1 sigma; +/-"
                 f"{100 * view['scatter_relative_u']:.0f} %): origin {o['scatter_px']:.5f} vs Cramer-Rao "
                 f"{o['crb_px']:.5f} ({o['ratio']:.2f}x), principal point {p['scatter_px']:.5f} vs "
-                f"{p['crb_px']:.5f} ({p['ratio']:.2f}x)"
+                f"{p['crb_px']:.5f} ({p['ratio']:.2f}x); closed form, edges alone: "
+                f"{view['closed_form_px']:.5f}"
             )
         if "speed" in entry:
             for choice, s in entry["speed"].items():

@@ -8,6 +8,8 @@ from below. The scatter must be within ``FACTOR`` of the bound, and below it by 
 sample standard deviation's own uncertainty (its 0.1 % quantile over ``REPEATS - 1`` degrees of
 freedom); the bound leaves out vignetting and the illumination gradient, which only raise the true
 limit, so that check errs toward passing a measurement that is too good, never toward failing one.
+The closed form of ``station.vision._ruler_bound`` (the graduations' edges alone, every other
+parameter known) must lie below the full bound under the principal point, and within 2x of it.
 """
 
 from __future__ import annotations
@@ -43,3 +45,6 @@ def test_the_position_scatters_near_its_cramer_rao_bound_on_the_nominal_preset()
         )
         # the view's own bias stays within the nominal target's mean error (0.002 px)
         assert abs(figures["mean_error_px"]) <= 0.002
+    # the closed form (the edges alone, everything else known) is below the full bound, and not far
+    closed, principal = result["closed_form_px"], result["principal"]["crb_px"]
+    assert 0.5 * principal <= closed <= principal
