@@ -300,9 +300,13 @@ def _levels(
     centres = layout.window_starts + layout.window_lengths / 2
     s = centres[near]
     fill = np.where(np.isfinite(s_bins), s_bins, 0.0)
-    if len(s) >= 2:
-        dark = np.polyval(np.polyfit(s, phases.dark[near], 1), fill)
-        bright = np.polyval(np.polyfit(s, phases.bright[near], 1), fill)
+    if len(s) >= 2 and np.ptp(s) > 0:  # straight lines by least squares (np.polyfit's, in closed form)
+        u = s - s.mean()
+        spread = float(u @ u)
+        levels = []
+        for values in (phases.dark[near], phases.bright[near]):
+            levels.append(values.mean() + float(u @ (values - values.mean())) / spread * (fill - s.mean()))
+        dark, bright = levels
     else:
         dark = np.full(len(s_bins), float(np.median(phases.dark)))
         bright = np.full(len(s_bins), float(np.median(phases.bright)))
