@@ -10,6 +10,7 @@ PyObject *ruler_cosines(PyObject *self, PyObject *args);
 PyObject *ruler_tip_contrasts(PyObject *self, PyObject *args);
 PyObject *ruler_tip_fit(PyObject *self, PyObject *args);
 PyObject *ruler_correction(PyObject *self, PyObject *args);
+PyObject *ruler_windows(PyObject *self, PyObject *args);
 
 #define RULER_KERNEL_METHODS                                                                              \
     {"ruler_bins", ruler_bins, METH_VARARGS, "The ruler's pass over the pixels: each into its strip's bin."}, \
@@ -18,6 +19,7 @@ PyObject *ruler_correction(PyObject *self, PyObject *args);
     {"ruler_cosines", ruler_cosines, METH_VARARGS, "The ruler template's cosine moments."},                \
     {"ruler_tip_contrasts", ruler_tip_contrasts, METH_VARARGS, "The ruler tip zones' strip contrasts."},   \
     {"ruler_tip_fit", ruler_tip_fit, METH_VARARGS, "The ruler tip zone's blurred step, fitted."},           \
-    {"ruler_correction", ruler_correction, METH_VARARGS, "The ruler frame's robust correction, fitted."},
+    {"ruler_correction", ruler_correction, METH_VARARGS, "The ruler frame's robust correction, fitted."},  \
+    {"ruler_windows", ruler_windows, METH_VARARGS, "The ruler's phase windows from their bins."},
 
 #endif

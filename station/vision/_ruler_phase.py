@@ -64,7 +64,23 @@ def windows_from_bins(
     bins: FloatArray, starts: FloatArray, lengths: FloatArray, strip: npt.NDArray[np.int64]
 ) -> Windows:
     """Group consecutive bins into windows (``BINS_PER_WINDOW`` each) starting at ``starts``, each
-    ``lengths`` periods long."""
+    ``lengths`` periods long (the compiled kernel ``_ckernels.ruler_windows`` does the same)."""
+    ck = compiled()
+    if ck is not None:
+        shape = (len(starts), BINS_PER_WINDOW)
+        n, level, s, u = (np.empty(shape) for _ in range(4))
+        moments = np.empty((len(starts), 5))
+        ck.ruler_windows(
+            np.ascontiguousarray(bins, dtype=np.float64),
+            np.ascontiguousarray(starts, dtype=np.float64),
+            np.ascontiguousarray(lengths, dtype=np.float64),
+            n,
+            level,
+            s,
+            u,
+            moments,
+        )
+        return Windows(n=n, level=level, s=s, u=u, moments=moments, strip=strip)
     b = bins.reshape(len(starts), BINS_PER_WINDOW, bins.shape[1])
     n = b[..., 0]
     safe = np.maximum(n, 1.0)
