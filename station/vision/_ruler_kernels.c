@@ -914,3 +914,55 @@ done:
     rrelease(&mb);
     return result;
 }
+
+/* ruler_template(grid, phase, out_value, out_slope) -> None
+ *
+ * _ruler_phase.template_value: the periodic template (Catmull-Rom cubic through grid, G samples per
+ * period) and its derivative at each phase (any length n; out_value, out_slope n each), element for
+ * element the reference's arithmetic. */
+PyObject *ruler_template(PyObject *self, PyObject *args) {
+    PyObject *o_g, *o_p, *o_v, *o_s;
+    if (!PyArg_ParseTuple(args, "OOOO", &o_g, &o_p, &o_v, &o_s)) return NULL;
+    RBuf gb = {0}, pb = {0}, vb = {0}, sb = {0};
+    PyObject *result = NULL;
+    if (rget(o_g, &gb, 'd', -1, 0, 0, "grid") < 0 || rget(o_p, &pb, 'd', -1, 0, 0, "phase") < 0) goto done;
+    const Py_ssize_t size = gb.view.len / 8, n = pb.view.len / 8;
+    if (size < 4) {
+        PyErr_SetString(PyExc_ValueError, "ruler_template: grid needs at least 4 samples");
+        goto done;
+    }
+    if (rget(o_v, &vb, 'd', n, 1, 0, "out_value") < 0 || rget(o_s, &sb, 'd', n, 1, 0, "out_slope") < 0) goto done;
+    const double *grid = (const double *)gb.view.buf, *ph = (const double *)pb.view.buf;
+    double *ov = (double *)vb.view.buf, *os = (double *)sb.view.buf;
+    const double scale = (double)size;
+    for (Py_ssize_t k = 0; k < n; k++) {
+        const double x = (ph[k] - floor(ph[k])) * scale;
+        const double fl = floor(x);
+        if (!isfinite(fl)) {
+            ov[k] = NAN;
+            os[k] = NAN;
+            continue;
+        }
+        Py_ssize_t i0 = (Py_ssize_t)fl;
+        const double f = x - fl;
+        i0 %= size;
+        if (i0 < 0) i0 += size;
+        const Py_ssize_t im = i0 == 0 ? size - 1 : i0 - 1;
+        const Py_ssize_t i1 = i0 + 1 >= size ? i0 + 1 - size : i0 + 1;
+        const Py_ssize_t i2 = i1 + 1 >= size ? i1 + 1 - size : i1 + 1;
+        const double a = grid[i0], b = grid[i1], am = grid[im], bp = grid[i2];
+        const double c1 = b - am;
+        const double c2 = 2 * am - 5 * a + 4 * b - bp;
+        const double c3 = 3 * (a - b) + bp - am;
+        ov[k] = a + 0.5 * f * (c1 + f * (c2 + f * c3));
+        os[k] = 0.5 * (c1 + f * (2 * c2 + 3 * f * c3)) * scale;
+    }
+    Py_INCREF(Py_None);
+    result = Py_None;
+done:
+    rrelease(&gb);
+    rrelease(&pb);
+    rrelease(&vb);
+    rrelease(&sb);
+    return result;
+}

@@ -11,6 +11,7 @@ PyObject *ruler_tip_contrasts(PyObject *self, PyObject *args);
 PyObject *ruler_tip_fit(PyObject *self, PyObject *args);
 PyObject *ruler_correction(PyObject *self, PyObject *args);
 PyObject *ruler_windows(PyObject *self, PyObject *args);
+PyObject *ruler_template(PyObject *self, PyObject *args);
 
 #define RULER_KERNEL_METHODS                                                                              \
     {"ruler_bins", ruler_bins, METH_VARARGS, "The ruler's pass over the pixels: each into its strip's bin."}, \
@@ -20,6 +21,7 @@ PyObject *ruler_windows(PyObject *self, PyObject *args);
     {"ruler_tip_contrasts", ruler_tip_contrasts, METH_VARARGS, "The ruler tip zones' strip contrasts."},   \
     {"ruler_tip_fit", ruler_tip_fit, METH_VARARGS, "The ruler tip zone's blurred step, fitted."},           \
     {"ruler_correction", ruler_correction, METH_VARARGS, "The ruler frame's robust correction, fitted."},  \
-    {"ruler_windows", ruler_windows, METH_VARARGS, "The ruler's phase windows from their bins."},
+    {"ruler_windows", ruler_windows, METH_VARARGS, "The ruler's phase windows from their bins."},         \
+    {"ruler_template", ruler_template, METH_VARARGS, "The ruler's template and its slope at phases."},
 
 #endif

@@ -116,7 +116,14 @@ def _solve(weight: FloatArray, columns: list[FloatArray], values: FloatArray) ->
 
 
 def template_value(grid: FloatArray, phase: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """The periodic template (Catmull-Rom cubic through ``grid``) and its derivative at ``phase``."""
+    """The periodic template (Catmull-Rom cubic through ``grid``) and its derivative at ``phase``
+    (the compiled kernel ``_ckernels.ruler_template`` does the same)."""
+    ck = compiled()
+    if ck is not None:
+        flat = np.ascontiguousarray(phase, dtype=np.float64).ravel()
+        value, slope = np.empty(flat.shape), np.empty(flat.shape)
+        ck.ruler_template(np.ascontiguousarray(grid, dtype=np.float64), flat, value, slope)
+        return value.reshape(np.shape(phase)), slope.reshape(np.shape(phase))
     size = len(grid)
     x = (phase - np.floor(phase)) * size
     i0 = np.floor(x).astype(np.int64)

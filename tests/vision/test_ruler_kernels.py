@@ -27,6 +27,7 @@ from station.vision._ruler_phase import (
     _round,
     _template,
     fit_correction,
+    template_value,
     window_phases,
     windows_from_bins,
 )
@@ -67,6 +68,21 @@ def test_the_pass_over_the_pixels_gives_the_same_bins(views: list[np.ndarray], s
         assert ref[:, 0].sum() > 10_000
         assert_array_equal(got[:, 0], ref[:, 0])
         assert_allclose(got, ref, rtol=1e-12, atol=1e-9)
+
+
+def test_the_template_is_read_the_same_anywhere() -> None:
+    rng = np.random.default_rng(5)
+    grid = np.cos(2 * np.pi * np.arange(4096) / 4096) + 0.1 * np.cos(6 * np.pi * np.arange(4096) / 4096)
+    phase = np.concatenate([rng.uniform(-40.0, 40.0, 5000), [0.0, 0.5, -1.0, 1.0 - 1e-17, 3.999999999999]])
+    phase = phase.reshape(5, -1)  # any shape
+    with kernels("numpy"):
+        ref = template_value(grid, phase)
+    with kernels("c"):
+        got = template_value(grid, phase)
+    assert ref[0].shape == got[0].shape == phase.shape
+    assert_array_equal(got[0], ref[0])
+    assert_array_equal(got[1], ref[1])
+    assert np.ptp(ref[0]) > 2.0
 
 
 def test_the_bins_make_the_same_windows(views: list[np.ndarray]) -> None:
