@@ -20,16 +20,15 @@ from station.vision._image import check_quality, image_bit_depth, to_gray8
 from station.vision._ruler_bins import Strips, fold
 from station.vision._ruler_coarse import coarse_ruler
 from station.vision._ruler_code import cell_darkness, read_code
+from station.vision._ruler_correction import FrameCorrection, fit_correction
 from station.vision._ruler_errors import OffRulerError, TooFewGraduationsError
 from station.vision._ruler_frame import RulerFrame
 from station.vision._ruler_layout import Plan, plan
 from station.vision._ruler_lens import lens_coordinates
 from station.vision._ruler_params import RulerParams
 from station.vision._ruler_phase import (
-    FrameCorrection,
     WindowPhases,
     Windows,
-    fit_correction,
     template_value,
     window_phases,
     windows_from_bins,

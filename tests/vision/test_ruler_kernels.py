@@ -18,6 +18,7 @@ from station.vision import RulerParams, measure_ruler
 from station.vision._kernels import available, kernels
 from station.vision._ruler_bins import fold
 from station.vision._ruler_coarse import coarse_ruler
+from station.vision._ruler_correction import fit_correction
 from station.vision._ruler_layout import plan
 from station.vision._ruler_lens import lens_coordinates
 from station.vision._ruler_phase import (
@@ -26,7 +27,6 @@ from station.vision._ruler_phase import (
     _folded,
     _round,
     _template,
-    fit_correction,
     template_value,
     window_phases,
     windows_from_bins,
