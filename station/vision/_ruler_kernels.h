@@ -1,4 +1,5 @@
-/* The ruler measurement's compiled kernels (_ruler_kernels.c), part of the _ckernels module. */
+/* The ruler measurement's compiled kernels (_ruler_kernels.c, _ruler_template.c, _ruler_fits.c), part
+ * of the _ckernels module. */
 #ifndef STATION_RULER_KERNELS_H
 #define STATION_RULER_KERNELS_H
 #include <Python.h>

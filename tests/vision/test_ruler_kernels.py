@@ -1,4 +1,4 @@
-"""The ruler's compiled kernels (``station/vision/_ruler_kernels.c``) against the numpy reference.
+"""The ruler's compiled kernels (``station/vision/_ruler_*.c``) against the numpy reference.
 
 As for the cross (``test_kernels``): the numpy code is the reference; the pass over the pixels gives
 the same bins, the windows' rounds the same coefficients, and a whole measurement the same
