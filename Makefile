@@ -6,7 +6,7 @@ OUT ?= out
 
 .PHONY: setup run demo test lint typecheck layers pytest bench clean
 
-$(STAMP): pyproject.toml setup.py station/vision/_ckernels.c constraints.txt tools/setup.sh tools/apt-packages.txt
+$(STAMP): pyproject.toml setup.py station/vision/_ckernels.c $(wildcard station/vision/_ruler_*.[ch]) constraints.txt tools/setup.sh tools/apt-packages.txt
 	VENV=$(VENV) bash tools/setup.sh
 	touch $(STAMP)
 

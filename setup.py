@@ -1,4 +1,5 @@
-"""The compiled kernels of the measurement core (station/vision/_ckernels.c, issue 12).
+"""The compiled kernels of the measurement core (station/vision/_ckernels.c, issue 12; the ruler's,
+station/vision/_ruler_*.c, issue 22).
 
 Everything else about the package is declared in pyproject.toml. The extension is plain C on the
 buffer protocol (Python.h and libm only, no numpy headers at build time), at -O3 (vectorised loops;
@@ -13,8 +14,13 @@ setup(
     ext_modules=[
         Extension(
             "station.vision._ckernels",
-            sources=["station/vision/_ckernels.c", "station/vision/_ruler_kernels.c"],
-            depends=["station/vision/_ruler_kernels.h"],
+            sources=[
+                "station/vision/_ckernels.c",
+                "station/vision/_ruler_kernels.c",
+                "station/vision/_ruler_template.c",
+                "station/vision/_ruler_fits.c",
+            ],
+            depends=["station/vision/_ruler_kernels.h", "station/vision/_ruler_common.h"],
             extra_compile_args=["-O3", "-ffp-contract=off", "-fno-fast-math", "-std=c99"],
             optional=True,
         )

@@ -109,10 +109,18 @@ def cell_darkness(
         seen & (np.abs(d - b) > 1e-9), (level - b) / np.where(np.abs(d - b) > 1e-9, d - b, 1.0), np.nan
     )
     q = q.reshape(count, subs)
-    darkness = np.full(count, np.nan)
-    some = np.isfinite(q).any(axis=1)
-    darkness[some] = np.nanmedian(q[some], axis=1)
-    return np.arange(lo, lo + count), darkness
+    return np.arange(lo, lo + count), _row_nanmedian(q)
+
+
+def _row_nanmedian(q: FloatArray) -> FloatArray:
+    """``np.nanmedian(q, axis=1)`` of a few columns, NaN (without a warning) for a row of NaN only:
+    each row sorted (NaN last), the middle of its finite values, or the mean of the two middle ones."""
+    ordered = np.sort(q, axis=1)
+    k = np.count_nonzero(np.isfinite(q), axis=1)
+    upper = np.take_along_axis(ordered, np.maximum(k // 2, 0)[:, None], axis=1)[:, 0]
+    lower = np.take_along_axis(ordered, np.maximum((k - 1) // 2, 0)[:, None], axis=1)[:, 0]
+    middle = np.where(k % 2 == 1, upper, (lower + upper) / 2.0)
+    return np.asarray(np.where(k > 0, middle, np.nan))
 
 
 def read_code(cells: npt.NDArray[np.int64], darkness: FloatArray, spec: RulerSpec) -> CodeReading:

@@ -1,48 +1,21 @@
 /* Compiled kernels of the ruler measurement (issue 22), part of the _ckernels module: the pass over
- * the pixels (_ruler_bins.fold) and one least-squares round of the phase windows
- * (_ruler_phase._round_numpy). Element for element the same arithmetic, in the same order, as the
- * numpy reference in those modules, which stays the tested reference (tests/vision/test_ruler_kernels.py).
+ * the pixels (_ruler_bins.fold), the phase windows from their bins (_ruler_phase.windows_from_bins)
+ * and one least-squares round of the windows (_ruler_phase._round). The template: _ruler_template.c;
+ * the fits of the tips and of the frame's correction: _ruler_fits.c. Element for element the same
+ * arithmetic as the numpy reference in those modules, which stays the tested reference
+ * (tests/vision/test_ruler_kernels.py).
  *
  * Plain C on the buffer protocol, like _ckernels.c (built with it, -O3 -ffp-contract=off).
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
+#include <float.h>
 #include <math.h>
 #include <stdint.h>
 #include <string.h>
 
+#include "_ruler_common.h"
 #include "_ruler_kernels.h"
-
-typedef struct {
-    Py_buffer view;
-    int held;
-} RBuf;
-
-static void rrelease(RBuf *b) {
-    if (b->held) {
-        PyBuffer_Release(&b->view);
-        b->held = 0;
-    }
-}
-
-/* kind: 'd' float64, 'B' uint8. n < 0: any length. obj None with optional: left unheld (returns 1). */
-static int rget(PyObject *obj, RBuf *b, char kind, Py_ssize_t n, int writable, int optional, const char *name) {
-    if (optional && obj == Py_None) return 1;
-    int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
-    if (PyObject_GetBuffer(obj, &b->view, flags) < 0) return -1;
-    b->held = 1;
-    const char *f = b->view.format ? b->view.format : "B";
-    if (*f == '<' || *f == '=' || *f == '@') f++;
-    int ok = kind == 'd' ? (*f == 'd' && b->view.itemsize == 8) : (*f == 'B' && b->view.itemsize == 1);
-    Py_ssize_t len = b->view.itemsize ? b->view.len / b->view.itemsize : 0;
-    if (!ok || (n >= 0 && len != n)) {
-        PyErr_Format(PyExc_TypeError, "%s: expected %zd items of kind '%c', got format '%s' (%zd items)", name, n,
-                     kind, b->view.format ? b->view.format : "B", len);
-        rrelease(b);
-        return -1;
-    }
-    return 0;
-}
 
 /* ruler_bins(gray, xs, ys, m, table, step, out) -> None
  *
@@ -156,37 +129,6 @@ done:
     rrelease(&tb);
     rrelease(&ob);
     return result;
-}
-
-/* Solve the p x p system a x = b in place (Gaussian elimination, partial pivoting); 0 on success. */
-static int solve_small(double *a, double *b, int p) {
-    for (int col = 0; col < p; col++) {
-        int piv = col;
-        for (int r = col + 1; r < p; r++)
-            if (fabs(a[r * p + col]) > fabs(a[piv * p + col])) piv = r;
-        if (a[piv * p + col] == 0.0) return -1;
-        if (piv != col) {
-            for (int j = 0; j < p; j++) {
-                const double tmp = a[col * p + j];
-                a[col * p + j] = a[piv * p + j];
-                a[piv * p + j] = tmp;
-            }
-            const double tmp = b[col];
-            b[col] = b[piv];
-            b[piv] = tmp;
-        }
-        for (int r = col + 1; r < p; r++) {
-            const double f = a[r * p + col] / a[col * p + col];
-            for (int j = col; j < p; j++) a[r * p + j] -= f * a[col * p + j];
-            b[r] -= f * b[col];
-        }
-    }
-    for (int r = p - 1; r >= 0; r--) {
-        double acc = b[r];
-        for (int j = r + 1; j < p; j++) acc -= a[r * p + j] * b[j];
-        b[r] = acc / a[r * p + r];
-    }
-    return 0;
 }
 
 /* ruler_fit(n, level, s, u, weight, grid, delta, out_coef, out_residual) -> None
@@ -303,5 +245,75 @@ done:
     rrelease(&db);
     rrelease(&cb);
     rrelease(&rb);
+    return result;
+}
+
+/* ruler_windows(bins, starts, lengths, out_n, out_level, out_s, out_u, out_moments) -> None
+ *
+ * _ruler_phase.windows_from_bins: bins (W * B, 6) float64 grouped into W windows of B bins (B =
+ * len(out_n) / W), window w starting at starts[w] and lengths[w] periods long. Per bin the count,
+ * mean level, mean s (the bin's centre when empty) and s from the window's centre (out_n, out_level,
+ * out_s, out_u, each (W, B)); per window its moments (n, mean s, mean t, var s, cov s t) (W, 5). */
+PyObject *ruler_windows(PyObject *self, PyObject *args) {
+    PyObject *o_b, *o_st, *o_l, *o_n, *o_lv, *o_s, *o_u, *o_m;
+    if (!PyArg_ParseTuple(args, "OOOOOOOO", &o_b, &o_st, &o_l, &o_n, &o_lv, &o_s, &o_u, &o_m)) return NULL;
+    RBuf bb = {0}, stb = {0}, lb = {0}, nb = {0}, lvb = {0}, sb = {0}, ub = {0}, mb = {0};
+    PyObject *result = NULL;
+    if (rget(o_st, &stb, 'd', -1, 0, 0, "starts") < 0) goto done;
+    const Py_ssize_t nw = stb.view.len / 8;
+    if (rget(o_l, &lb, 'd', nw, 0, 0, "lengths") < 0 || rget(o_n, &nb, 'd', -1, 1, 0, "out_n") < 0) goto done;
+    const Py_ssize_t total = nb.view.len / 8;
+    if (nw < 1 || total % nw != 0) {
+        PyErr_SetString(PyExc_TypeError, "ruler_windows: out_n must be (windows, bins) with windows = len(starts)");
+        goto done;
+    }
+    const Py_ssize_t nbins = total / nw;
+    if (rget(o_b, &bb, 'd', total * 6, 0, 0, "bins") < 0 || rget(o_lv, &lvb, 'd', total, 1, 0, "out_level") < 0 ||
+        rget(o_s, &sb, 'd', total, 1, 0, "out_s") < 0 || rget(o_u, &ub, 'd', total, 1, 0, "out_u") < 0 ||
+        rget(o_m, &mb, 'd', nw * 5, 1, 0, "out_moments") < 0)
+        goto done;
+    const double *b = (const double *)bb.view.buf, *starts = (const double *)stb.view.buf;
+    const double *lengths = (const double *)lb.view.buf;
+    double *on = (double *)nb.view.buf, *ol = (double *)lvb.view.buf, *os = (double *)sb.view.buf;
+    double *ou = (double *)ub.view.buf, *om = (double *)mb.view.buf;
+    for (Py_ssize_t w = 0; w < nw; w++) {
+        double tn = 0.0, ts = 0.0, tt = 0.0, tss = 0.0, tst = 0.0;
+        const double mid = starts[w] + lengths[w] / 2;
+        for (Py_ssize_t i = 0; i < nbins; i++) {
+            const Py_ssize_t q = w * nbins + i;
+            const double *row = b + q * 6;
+            const double n = row[0], safe = n > 1.0 ? n : 1.0;
+            const double centre = starts[w] + (((double)i + 0.5) / (double)nbins) * lengths[w];
+            const double s = n > 0 ? row[2] / safe : centre;
+            on[q] = n;
+            ol[q] = row[1] / safe;
+            os[q] = s;
+            ou[q] = s - mid;
+            tn += n;
+            ts += row[2];
+            tt += row[3];
+            tss += row[4];
+            tst += row[5];
+        }
+        const double ok = tn > 1.0 ? tn : 1.0;
+        const double mean_s = ts / ok, mean_t = tt / ok;
+        double *m = om + w * 5;
+        m[0] = tn;
+        m[1] = mean_s;
+        m[2] = mean_t;
+        m[3] = tss / ok - mean_s * mean_s;
+        m[4] = tst / ok - mean_s * mean_t;
+    }
+    Py_INCREF(Py_None);
+    result = Py_None;
+done:
+    rrelease(&bb);
+    rrelease(&stb);
+    rrelease(&lb);
+    rrelease(&nb);
+    rrelease(&lvb);
+    rrelease(&sb);
+    rrelease(&ub);
+    rrelease(&mb);
     return result;
 }

@@ -20,16 +20,15 @@ from station.vision._image import check_quality, image_bit_depth, to_gray8
 from station.vision._ruler_bins import Strips, fold
 from station.vision._ruler_coarse import coarse_ruler
 from station.vision._ruler_code import cell_darkness, read_code
+from station.vision._ruler_correction import FrameCorrection, fit_correction
 from station.vision._ruler_errors import OffRulerError, TooFewGraduationsError
 from station.vision._ruler_frame import RulerFrame
 from station.vision._ruler_layout import Plan, plan
 from station.vision._ruler_lens import lens_coordinates
 from station.vision._ruler_params import RulerParams
 from station.vision._ruler_phase import (
-    FrameCorrection,
     WindowPhases,
     Windows,
-    fit_correction,
     template_value,
     window_phases,
     windows_from_bins,
@@ -300,9 +299,13 @@ def _levels(
     centres = layout.window_starts + layout.window_lengths / 2
     s = centres[near]
     fill = np.where(np.isfinite(s_bins), s_bins, 0.0)
-    if len(s) >= 2:
-        dark = np.polyval(np.polyfit(s, phases.dark[near], 1), fill)
-        bright = np.polyval(np.polyfit(s, phases.bright[near], 1), fill)
+    if len(s) >= 2 and np.ptp(s) > 0:  # straight lines by least squares (np.polyfit's, in closed form)
+        u = s - s.mean()
+        spread = float(u @ u)
+        levels = []
+        for values in (phases.dark[near], phases.bright[near]):
+            levels.append(values.mean() + float(u @ (values - values.mean())) / spread * (fill - s.mean()))
+        dark, bright = levels
     else:
         dark = np.full(len(s_bins), float(np.median(phases.dark)))
         bright = np.full(len(s_bins), float(np.median(phases.bright)))

@@ -9,9 +9,7 @@ centre, so it is the graduations' own blurred shape, every harmonic of it): in e
 model ``D + D1 u + (A + A1 u) T(s + delta)`` with ``u`` the position in the window, so that a
 background and a contrast that vary along the window (illumination, vignetting) do not bias it.
 Bins that the model cannot explain (a speck, a scratch, a hot pixel) are dropped. Then one small
-projective correction of the frame (``RulerFrame.corrected``) is fitted to all the windows'
-phases, robustly, each window at its centroid with its second moments (the correction's quadratic
-terms averaged over the window).
+projective correction of the frame is fitted to all the windows' phases (``_ruler_correction``).
 
 Fitting the whole profile rather than its fundamental uses the information of the harmonics (the
 sharp edges): for the nominal camera the phase's variance is several times lower.
@@ -39,8 +37,6 @@ FOLD_BINS = 1024
 #: most, and at least.
 HARMONICS = 32
 MIN_HARMONICS = 8
-#: Tukey's biweight constant (95 % efficiency on Gaussian residuals).
-TUKEY_C = 4.685
 
 
 @dataclass(frozen=True)
@@ -64,7 +60,23 @@ def windows_from_bins(
     bins: FloatArray, starts: FloatArray, lengths: FloatArray, strip: npt.NDArray[np.int64]
 ) -> Windows:
     """Group consecutive bins into windows (``BINS_PER_WINDOW`` each) starting at ``starts``, each
-    ``lengths`` periods long."""
+    ``lengths`` periods long (the compiled kernel ``_ckernels.ruler_windows`` does the same)."""
+    ck = compiled()
+    if ck is not None:
+        shape = (len(starts), BINS_PER_WINDOW)
+        n, level, s, u = (np.empty(shape) for _ in range(4))
+        moments = np.empty((len(starts), 5))
+        ck.ruler_windows(
+            np.ascontiguousarray(bins, dtype=np.float64),
+            np.ascontiguousarray(starts, dtype=np.float64),
+            np.ascontiguousarray(lengths, dtype=np.float64),
+            n,
+            level,
+            s,
+            u,
+            moments,
+        )
+        return Windows(n=n, level=level, s=s, u=u, moments=moments, strip=strip)
     b = bins.reshape(len(starts), BINS_PER_WINDOW, bins.shape[1])
     n = b[..., 0]
     safe = np.maximum(n, 1.0)
@@ -100,7 +112,14 @@ def _solve(weight: FloatArray, columns: list[FloatArray], values: FloatArray) ->
 
 
 def template_value(grid: FloatArray, phase: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """The periodic template (Catmull-Rom cubic through ``grid``) and its derivative at ``phase``."""
+    """The periodic template (Catmull-Rom cubic through ``grid``) and its derivative at ``phase``
+    (the compiled kernel ``_ckernels.ruler_template`` does the same)."""
+    ck = compiled()
+    if ck is not None:
+        flat = np.ascontiguousarray(phase, dtype=np.float64).ravel()
+        value, slope = np.empty(flat.shape), np.empty(flat.shape)
+        ck.ruler_template(np.ascontiguousarray(grid, dtype=np.float64), flat, value, slope)
+        return value.reshape(np.shape(phase)), slope.reshape(np.shape(phase))
     size = len(grid)
     x = (phase - np.floor(phase)) * size
     i0 = np.floor(x).astype(np.int64)
@@ -125,6 +144,46 @@ def _template(w: Windows, weight: FloatArray, coef: FloatArray, delta: FloatArra
     the graduation's centre by construction, and it is fitted at the samples' own phases: no
     smoothing and no bias from where the pixels happen to sample the period.
     """
+    total, sum_x, sum_v = _folded(w, weight, coef, delta)
+    seen = total > 0
+    weights = total[seen]
+    mean_x = sum_x[seen] / weights
+    mean_v = sum_v[seen] / weights
+    # normal equations of the cosine series from the moments M_j = sum w cos(2 pi j x), j <= 2K:
+    # sum w cos(k a) cos(l a) = (M_|k-l| + M_(k+l)) / 2 (a matrix-vector product, no matrix product)
+    harmonics = _resolvable(mean_x)
+    moments, rhs = _cosine_sums(mean_x, weights, mean_v, 2 * harmonics, harmonics)
+    k = np.arange(harmonics + 1)
+    normal_eq = 0.5 * (moments[np.abs(k[:, None] - k[None, :])] + moments[k[:, None] + k[None, :]])
+    normal_eq += np.eye(harmonics + 1) * 1e-10 * np.trace(normal_eq) / (harmonics + 1)
+    series = np.linalg.solve(normal_eq, rhs)
+    # tabulated by an inverse real FFT: grid[j] = sum_k series[k] cos(2 pi k j / TEMPLATE_SAMPLES)
+    spectrum = np.zeros(TEMPLATE_SAMPLES // 2 + 1)
+    spectrum[: harmonics + 1] = series
+    spectrum[1 : harmonics + 1] *= 0.5
+    return np.asarray(np.fft.irfft(spectrum, TEMPLATE_SAMPLES) * TEMPLATE_SAMPLES)
+
+
+def _folded(
+    w: Windows, weight: FloatArray, coef: FloatArray, delta: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The windows' bins normalised by each window's background and contrast (``coef``'s first four
+    columns) and folded about a graduation's centre into ``FOLD_BINS`` fine bins: per fine bin the
+    total weight (``weight`` times the contrast squared), and its sums of the folded phase and of the
+    normalised level. The compiled kernel (``_ckernels.ruler_profile``) does the same."""
+    ck = compiled()
+    if ck is not None:
+        out = np.empty((FOLD_BINS, 3))
+        ck.ruler_profile(
+            w.level,
+            w.s,
+            w.u,
+            np.ascontiguousarray(weight, dtype=np.float64),
+            np.ascontiguousarray(coef[:, :4], dtype=np.float64),
+            np.ascontiguousarray(delta, dtype=np.float64),
+            out,
+        )
+        return out[:, 0], out[:, 1], out[:, 2]
     contrast = coef[:, 2:3] + coef[:, 3:4] * w.u
     normal = (w.level - coef[:, 0:1] - coef[:, 1:2] * w.u) / np.where(np.abs(contrast) > 1e-9, contrast, 1e-9)
     phase = w.s + delta[:, None]
@@ -135,25 +194,30 @@ def _template(w: Windows, weight: FloatArray, coef: FloatArray, delta: FloatArra
     keep = (informed > 0) & np.isfinite(normal)
     x, v, wt = phase[keep], normal[keep], informed[keep]
     index = np.minimum((x * 2 * FOLD_BINS).astype(np.int64), FOLD_BINS - 1)
-    total = np.bincount(index, wt, minlength=FOLD_BINS)
-    seen = total > 0
-    mean_x = np.bincount(index, wt * x, minlength=FOLD_BINS)[seen] / total[seen]
-    mean_v = np.bincount(index, wt * v, minlength=FOLD_BINS)[seen] / total[seen]
-    # normal equations of the cosine series from the moments M_j = sum w cos(2 pi j x), j <= 2K:
-    # sum w cos(k a) cos(l a) = (M_|k-l| + M_(k+l)) / 2 (a matrix-vector product, no matrix product)
-    weights = total[seen]
-    harmonics = _resolvable(mean_x)
-    cosines = _cosines(mean_x, 2 * harmonics)
-    moments = cosines @ weights
-    k = np.arange(harmonics + 1)
-    normal_eq = 0.5 * (moments[np.abs(k[:, None] - k[None, :])] + moments[k[:, None] + k[None, :]])
-    normal_eq += np.eye(harmonics + 1) * 1e-10 * np.trace(normal_eq) / (harmonics + 1)
-    series = np.linalg.solve(normal_eq, cosines[: harmonics + 1] @ (weights * mean_v))
-    # tabulated by an inverse real FFT: grid[j] = sum_k series[k] cos(2 pi k j / TEMPLATE_SAMPLES)
-    spectrum = np.zeros(TEMPLATE_SAMPLES // 2 + 1)
-    spectrum[: harmonics + 1] = series
-    spectrum[1 : harmonics + 1] *= 0.5
-    return np.asarray(np.fft.irfft(spectrum, TEMPLATE_SAMPLES) * TEMPLATE_SAMPLES)
+    sums = [
+        np.bincount(index, values, minlength=FOLD_BINS).astype(np.float64) for values in (wt, wt * x, wt * v)
+    ]
+    return sums[0], sums[1], sums[2]
+
+
+def _cosine_sums(
+    x: FloatArray, weight: FloatArray, value: FloatArray, top: int, harmonics: int
+) -> tuple[FloatArray, FloatArray]:
+    """``sum weight cos(2 pi j x)`` for ``j = 0 .. top`` and ``sum weight value cos(2 pi k x)`` for
+    ``k = 0 .. harmonics`` (the compiled kernel ``_ckernels.ruler_cosines`` does the same)."""
+    ck = compiled()
+    if ck is not None:
+        moments, rhs = np.empty(top + 1), np.empty(harmonics + 1)
+        ck.ruler_cosines(
+            np.ascontiguousarray(x, dtype=np.float64),
+            np.ascontiguousarray(weight, dtype=np.float64),
+            np.ascontiguousarray(value, dtype=np.float64),
+            moments,
+            rhs,
+        )
+        return moments, rhs
+    cosines = _cosines(x, top)
+    return np.asarray(cosines @ weight), np.asarray(cosines[: harmonics + 1] @ (weight * value))
 
 
 def _resolvable(x: FloatArray) -> int:
@@ -249,38 +313,36 @@ def window_phases(
 ) -> WindowPhases:
     """Fit every window's phase against the shared template (module docstring).
 
-    ``quick``: no outliers dropped and one template only (the first, coarse pass).
+    ``quick``: one template and one round against it, no outliers dropped (the first, coarse pass:
+    its phases only place the second pass's bins, whose own fit moves them again by some 0.03 px).
     """
     n = w.n
     delta = np.zeros(len(n))
-    coef = np.zeros((len(n), 6))
-    for _ in range(1):  # the fundamental: dark graduations at whole s + delta
-        coef, _ = _round(w, n, _COSINE, delta, residual=False)
-        delta = delta + np.nan_to_num(np.arctan2(-2 * np.pi * coef[:, 4], -coef[:, 2]) / (2 * np.pi))
+    # the fundamental: dark graduations at whole s + delta
+    coef, _ = _round(w, n, _COSINE, delta, residual=False)
+    delta = delta + np.nan_to_num(np.arctan2(-2 * np.pi * coef[:, 4], -coef[:, 2]) / (2 * np.pi))
     amp = np.nan_to_num(np.hypot(coef[:, 2], 2 * np.pi * coef[:, 4]))
     centre = np.angle(np.sum(amp**2 * n.sum(axis=1) * np.exp(2j * np.pi * delta))) / (2 * np.pi)
     delta = centre + ((delta - centre + 0.5) % 1.0 - 0.5)
     start = np.column_stack([coef[:, 0], coef[:, 1], -amp, np.zeros_like(amp)])
     grid = _template(w, n, start, delta)
-    weight = n
-    noise = noise_floor_dn
-    # a round against the first template; a second with the bins' residuals: outliers dropped and
-    # the template made again from what is left; two more rounds against it
-    coef, _ = _round(w, n, grid, delta, residual=False)
-    delta = delta + _step(coef)
-    if quick:
+    if quick:  # one round against the template: a second would move the phases by some 1e-4 px
         coef, _ = _round(w, n, grid, delta, residual=False)
         delta = delta + _step(coef)
-        return _phases(coef, delta, grid, noise, 0)
+        return _phases(coef, delta, grid, noise_floor_dn, 0)
+    # a round against the first template; a second with the bins' residuals: outliers dropped and
+    # the template made again from what is left; one more round against it (a further round moves
+    # the windows' phases by some 2e-7 px)
+    coef, _ = _round(w, n, grid, delta, residual=False)
+    delta = delta + _step(coef)
     coef, residual = _round(w, n, grid, delta, residual=True)
     assert residual is not None
     noise = max(1.4826 * float(np.median(np.abs(residual[n > 0]))), noise_floor_dn)
     weight = n * (np.abs(residual) < outlier_sigma * noise)
     delta = delta + _step(coef)
     grid = _template(w, weight, coef, delta)
-    for _ in range(2):
-        coef, _ = _round(w, weight, grid, delta, residual=False)
-        delta = delta + _step(coef)
+    coef, _ = _round(w, weight, grid, delta, residual=False)
+    delta = delta + _step(coef)
     return _phases(coef, delta, grid, noise, int(np.count_nonzero((weight == 0) & (n > 0))))
 
 
@@ -302,63 +364,4 @@ def _phases(
         noise_dn=noise,
         rejected=rejected,
         template=grid,
-    )
-
-
-@dataclass(frozen=True)
-class FrameCorrection:
-    """The fitted correction ``e`` of ``RulerFrame.corrected`` about ``s_centre``, and its quality.
-
-    ``residual_rms_px``: rms of the windows' phase residuals (px); ``used``: windows kept (biweight
-    above 0); ``sigma_s0``: standard uncertainty of ``e0`` (periods).
-    """
-
-    e: FloatArray
-    s_centre: float
-    covariance: FloatArray
-    residual: FloatArray
-    used: int
-    scale: float
-
-
-def fit_correction(
-    w: Windows, phases: WindowPhases, *, perspective: float, rounds: int = 5
-) -> FrameCorrection:
-    """Fit the frame's correction to the windows' phases: weighted, Tukey-robust least squares.
-
-    ``perspective``: the prior standard deviation of the perspective terms (per period): a tilt
-    ``tau`` of the ruler's plane seen at ``f`` px with a period of ``P`` px changes the scale by
-    ``tan(tau) P / f`` per period. It only keeps them in bounds where the view cannot tell them
-    (a short stretch); elsewhere the windows decide.
-    """
-    m = w.moments
-    good = (m[:, 0] > 0) & (phases.info > 0)
-    sigma = phases.noise_dn / np.sqrt(np.where(good, phases.info, 1.0))
-    s_centre = float(np.average(m[good, 1], weights=1.0 / sigma[good] ** 2))
-    u = m[:, 1] - s_centre
-    t = m[:, 2]
-    design = np.column_stack([np.ones_like(u), u, t, -(u * u + m[:, 3]), -(u * t + m[:, 4])])
-    prior = np.diag([0.0, 0.0, 0.0, 1.0, 1.0]) / perspective**2
-    robust = good.astype(np.float64)
-    scale = 1.0
-    e: FloatArray = np.zeros(5)
-    cov: FloatArray = np.zeros((5, 5))
-    residual: FloatArray = np.zeros(len(u))
-    for _ in range(rounds):
-        wts = robust / sigma**2
-        cov = np.asarray(np.linalg.inv(design.T @ (design * wts[:, None]) + prior))
-        e = cov @ (design.T @ (wts * phases.delta))
-        residual = phases.delta - design @ e
-        z = residual / sigma
-        used = robust > 0
-        scale = max(1.0, 1.4826 * float(np.median(np.abs(z[good])))) if used.any() else 1.0
-        r = z / (TUKEY_C * scale)
-        robust = np.where(good & (np.abs(r) < 1), (1 - r * r) ** 2, 0.0)
-    return FrameCorrection(
-        e=e,
-        s_centre=s_centre,
-        covariance=cov * scale**2,
-        residual=residual,
-        used=int(np.count_nonzero(robust > 0)),
-        scale=scale,
     )

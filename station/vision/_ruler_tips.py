@@ -18,6 +18,8 @@ import numpy as np
 import numpy.typing as npt
 from scipy.special import ndtr
 
+from station.vision._kernels import compiled
+
 FloatArray = npt.NDArray[np.float64]
 
 
@@ -76,7 +78,23 @@ def contrasts(
     -------
     contrast, t : ndarray, ndarray
         Per strip (NaN where a strip has too few bins).
+
+    Notes
+    -----
+    The compiled kernel (``_ckernels.ruler_tip_contrasts``) does the same; this is its reference.
     """
+    ck = compiled()
+    if ck is not None:
+        contrast, t = np.empty(strips), np.empty(strips)
+        ck.ruler_tip_contrasts(
+            np.ascontiguousarray(bins, dtype=np.float64),
+            np.ascontiguousarray(strip, dtype=np.int64),
+            np.ascontiguousarray(profile, dtype=np.float64),
+            float(noise_floor),
+            contrast,
+            t,
+        )
+        return contrast, t
     n = bins[:, 0]
     level = bins[:, 1] / np.maximum(n, 1.0)
     weight = n.copy()
@@ -130,6 +148,10 @@ def fit_tip(
         i = int(below[0])
         te = float(t[i - 1] + (0.5 - q[i - 1]) * (t[i] - t[i - 1]) / (q[i] - q[i - 1]))
     params = np.array([te, blur, plateau, 0.0])
+    ck = compiled()
+    if ck is not None:  # the same loop (``_ckernels.ruler_tip_fit``)
+        ck.ruler_tip_fit(np.ascontiguousarray(t), np.ascontiguousarray(m), params, sign, float(blur))
+        return float(params[0]), float(params[1])
 
     def residual(p: FloatArray) -> tuple[FloatArray, FloatArray]:
         z = sign * (p[0] - t) / p[1]
