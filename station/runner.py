@@ -88,6 +88,7 @@ from station.plans import (
     station_cell,
 )
 from station.plans._gates import verdict
+from station.plans._recorded import FRAMES_PER_ATTEMPT, stored_captures
 from station.prompts import PromptError, PromptEvent
 from station.record import EventRow, Record, RecordError, SessionRow, station_lock
 from station.vision import MeasurementError, MeasureParams, measure
@@ -96,8 +97,6 @@ log = logging.getLogger(__name__)
 
 PRELUDE_BASE = 1_000_000
 """Step indices of resume preludes start here (plan steps are numbered from 0)."""
-FRAMES_PER_ATTEMPT = 1000
-"""A step's frames are numbered from attempt x FRAMES_PER_ATTEMPT (plans capture at most 100 per step)."""
 EARLY_FAILURE_CAPTURES = 3
 """A session whose first this-many captures all fail to measure stops: something is misconfigured."""
 
@@ -567,7 +566,8 @@ class SessionRunner:
 
     def _capture_results(self, sid: str) -> list[CaptureResult]:
         source_of = getattr(self.plan, "source_session", None)
-        source = self.record.get_session(source_of(self.params)).id if source_of is not None else sid
+        named = source_of(self.params) if source_of is not None else None  # None: an archive selection
+        source = self.record.get_session(named).id if named is not None else sid
         return stored_captures(self.record, source, measured_in=sid)
 
     # ------------------------------------------------------------------ steps
@@ -1196,37 +1196,6 @@ def require(device: Any, name: str) -> Any:
     if device is None:
         raise SessionError(f"this step needs the {name}, which the station configuration does not have")
     return device
-
-
-def stored_captures(record: Record, source: str, *, measured_in: str | None = None) -> list[CaptureResult]:
-    """The captures of session ``source``'s completed steps with the measurements session ``measured_in``
-    recorded of them (the source's own by default): what a plan's analysis gets."""
-    measurements = {m.capture_id: m for m in record.measurements(measured_in or source)}
-    done = {s.index for s in record.steps(source) if s.state == "done"}
-    caps = [c for c in record.captures(source) if c.step_index in done]
-    # a step run again after an interruption keeps its earlier attempt's frames (nothing captured is
-    # lost); the analysis takes the attempt that completed: the latest
-    latest: dict[int, int] = {}
-    for c in caps:
-        latest[c.step_index] = max(latest.get(c.step_index, 0), c.frame_index // FRAMES_PER_ATTEMPT)
-    out = []
-    for cap in caps:
-        if cap.frame_index // FRAMES_PER_ATTEMPT != latest[cap.step_index]:
-            continue
-        m = measurements.get(cap.id)
-        out.append(
-            CaptureResult(
-                cap.id,
-                cap.step_index,
-                cap.frame_index,
-                cap.meta,
-                m.result if m else None,
-                cap.width,
-                cap.height,
-                cap.z_mm,
-            )
-        )
-    return out
 
 
 def _config_of(devices: StationDevices | None) -> dict[str, Any] | None:
