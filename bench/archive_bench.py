@@ -8,7 +8,8 @@ sessions recorded on the simulated station, then
   analysed as its own kind (its results compared with the stored ones: same parameters and software,
   the same numbers).
 
-Reported: wall seconds and this process's (and its pool's) CPU seconds of each run, frames measured,
+Reported: wall seconds and the CPU seconds of this process and of every process it started (sampled
+while they live) of each run, frames measured,
 frames per second; the archive's recording time apart (it is the set-up, not what is measured). Written
 to ``bench/results/archive.json``. ``python -m bench.archive_bench [--sessions N] [--steps-per-side K]
 [--jobs J]``.
@@ -20,8 +21,8 @@ import argparse
 import contextlib
 import json
 import logging
-import os
 import tempfile
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -39,25 +40,52 @@ RESULTS = Path(__file__).parent / "results" / "archive.json"
 log = logging.getLogger("bench.archive")
 
 
-def _cpu_s() -> float:
-    """CPU seconds of this process and of every process it started (the pool's)."""
-    me = psutil.Process()
-    total = sum(me.cpu_times()[:2])
-    for child in me.children(recursive=True):
-        with contextlib.suppress(psutil.NoSuchProcess):
-            total += sum(child.cpu_times()[:2])
-    return total
+class CpuMeter:
+    """CPU seconds of this process and of every process it starts (the pool's, the fork server's),
+    sampled every ``interval`` s by a thread: a pool's processes end with the session, before a
+    reading after it could see them (a process's last ``interval`` is missed)."""
+
+    def __init__(self, interval: float = 0.1) -> None:
+        self._interval = interval
+        self._me = psutil.Process()
+        self._first: dict[int, float] = {}
+        self._last: dict[int, float] = {}
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="cpu-meter", daemon=True)
+
+    def _sample(self, *, baseline: bool = False) -> None:
+        """Each process's CPU now; a process first seen after the baseline started since (from 0)."""
+        for proc in [self._me, *self._me.children(recursive=True)]:
+            with contextlib.suppress(psutil.Error):
+                t = sum(proc.cpu_times()[:2])
+                self._first.setdefault(proc.pid, t if baseline else 0.0)
+                self._last[proc.pid] = t
+
+    def _run(self) -> None:
+        while not self._stop.wait(self._interval):
+            self._sample()
+
+    def __enter__(self) -> CpuMeter:
+        self._sample(baseline=True)
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join()
+        self._sample()
+
+    @property
+    def seconds(self) -> float:
+        return sum(self._last[pid] - self._first[pid] for pid in self._last)
 
 
 def _timed(run: Callable[[], SessionOutcome]) -> tuple[SessionOutcome, float, float]:
-    """The outcome, wall and CPU seconds of a session run (the pool's CPU read before it closes is
-    counted by the children's times while they live; a closed pool's by this process's wait: see
-    ``os.times``)."""
-    t0, c0, k0 = time.perf_counter(), _cpu_s(), os.times()
-    outcome = run()
-    k1 = os.times()
-    reaped = (k1.children_user - k0.children_user) + (k1.children_system - k0.children_system)
-    return outcome, time.perf_counter() - t0, _cpu_s() - c0 + reaped
+    """The outcome, wall and CPU seconds (all our processes) of a session run."""
+    t0 = time.perf_counter()
+    with CpuMeter() as cpu:
+        outcome = run()
+    return outcome, time.perf_counter() - t0, cpu.seconds
 
 
 def build_archive(data: Path, sessions: int, steps_per_side: int) -> list[str]:

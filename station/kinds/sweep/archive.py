@@ -9,15 +9,22 @@ would show for the selection's positions taken together, ranked as Table 1 ranks
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import contextlib
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from station.batch import AnyParams, FileResult
+from station.compute import LocalBackend, MeasureBackend
+from station.compute._backend import Cancelled, Frames, OnResult, as_items
+from station.imageio import ImageLimits
 from station.imagesets import ImageSet
 from station.plans._selection import Source, missing_images
-from station.sweep import Trial
+from station.sweep import Trial, run_sweep
+from station.vision import MeasureParams
 
 if TYPE_CHECKING:
     from station.record import CaptureRow, Record, SessionRow
@@ -25,6 +32,9 @@ if TYPE_CHECKING:
 #: The figures of a trial, per session and over the selection (um).
 FIGURES = ("mean_um", "max_um", "parallelogram_mean_um", "parallelogram_max_um")
 MIN_POSITIONS = 3
+#: Frames a selection's trial step measures at most in one call (its sessions taken together): tasks
+#: big enough for a pool or a cluster, steps small enough to pause, stop and resume.
+GROUP_FRAMES = 256
 
 
 def sweep_fits(kind: str) -> str | None:
@@ -51,6 +61,80 @@ def image_set_of(source: Source, record: Record) -> ImageSet:
     files = tuple(root / c.path for c in source.captures)
     disp = np.array([c.meta["commanded_um"] for c in source.captures], dtype=np.float64)
     return ImageSet(root, files, disp, {}, {"session": source.session.id})
+
+
+def groups(sources: Sequence[Source], frames: int = GROUP_FRAMES) -> list[tuple[Source, ...]]:
+    """Consecutive sessions in groups of at most ``frames`` position frames (a bigger one alone)."""
+    out: list[tuple[Source, ...]] = []
+    group: list[Source] = []
+    size = 0
+    for source in sources:
+        n = len(source.captures)
+        if group and size + n > frames:
+            out.append(tuple(group))
+            group, size = [], 0
+        group.append(source)
+        size += n
+    if group:
+        out.append(tuple(group))
+    return out
+
+
+@dataclass(frozen=True)
+class Measured:
+    """Frames measured already, served by path as a backend serves them (``validate`` reads a session's
+    frames from it after one call measured the frames of every session of a group)."""
+
+    results: dict[str, FileResult]
+    name: str = "frames measured already"
+
+    def measure(
+        self,
+        items: Frames,
+        params: AnyParams,
+        *,
+        limits: ImageLimits | None = None,
+        on_result: OnResult | None = None,
+        cancelled: Cancelled | None = None,
+    ) -> Iterator[FileResult]:
+        for item in as_items(items):
+            result = self.results[str(item)]
+            if on_result is not None:
+                on_result(result)
+            yield result
+
+    def close(self) -> None:
+        return None
+
+
+def trial_on_group(
+    group: Sequence[Source],
+    record: Record,
+    base: MeasureParams,
+    change: dict[str, Any],
+    *,
+    jobs: int,
+    backend: MeasureBackend | None,
+    calibration: str,
+    cancelled: Cancelled | None = None,
+) -> list[dict[str, Any]]:
+    """One trial on each session of ``group``: every frame of the group measured in one call on the
+    backend (else a local pool of ``jobs``), then each session validated from its own frames; the
+    per-session documents (``session``, ``positions``, FIGURES, ``error``), in order."""
+    sets = [image_set_of(source, record) for source in group]
+    files = [str(f) for image_set in sets for f in image_set.files]
+    params = base.with_values(**change)
+    with contextlib.ExitStack() as stack:
+        if backend is None:
+            backend = stack.enter_context(contextlib.closing(LocalBackend(jobs)))
+        measured = Measured(
+            dict(zip(files, backend.measure(files, params, cancelled=cancelled), strict=True))
+        )
+    docs = []
+    for source, image_set in zip(group, sets, strict=True):
+        trial = run_sweep(image_set, base, [change], backend=measured, calibration=calibration)[0]
+        docs.append({"session": source.session.id, **trial_figures(trial)})
+    return docs
 
 
 def trial_figures(trial: Trial) -> dict[str, Any]:

@@ -20,11 +20,13 @@ from pydantic import (
 from station.imagesets import ImageSet
 from station.kinds.sweep.archive import (
     FIGURES,
+    groups,
     image_set_of,
     pooled,
     position_captures,
     sweep_fits,
     trial_figures,
+    trial_on_group,
 )
 from station.plans import CaptureResult, Compute, PlanContext, PlanError, ReferencePose, Step
 from station.plans._recorded import record_of
@@ -115,33 +117,54 @@ class SweepPlan:
         if params.calibration not in CALIBRATIONS:
             raise PlanError(f"calibration must be one of {CALIBRATIONS}")
         sources = self.sources(params, ctx)  # every session checked before any trial is sent
-        single = params.session is not None
+        if params.session is None:
+            yield from self._selection_steps(params, sources)
+            return
+        (source,) = sources
         for number, change in enumerate(self.overrides(params), start=1):
-            for j, source in enumerate(sources):
+
+            def run(c: PlanContext, change: dict[str, Any] = change, number: int = number) -> dict[str, Any]:
+                trial = run_sweep(
+                    image_set_of(source, record_of(c)),
+                    c.measure_params,
+                    [change],
+                    jobs=c.jobs,
+                    backend=c.compute,
+                    calibration=params.calibration,
+                )[0]
+                doc = {"number": number, "overrides": change, **trial_figures(trial)}
+                doc.pop("positions")  # one session: the trial's figures are its own (as they always were)
+                return doc
+
+            yield Step(number - 1, f"trial {number}", (Compute(run, f"trial {number}"),), {"trial": number})
+
+    def _selection_steps(self, params: SweepParams, sources: list[Source]) -> Iterator[Step]:
+        """A step per trial and group of sessions: the group's frames measured in one call."""
+        parts = groups(sources)
+        for number, change in enumerate(self.overrides(params), start=1):
+            for g, group in enumerate(parts):
 
                 def run(
                     c: PlanContext,
                     change: dict[str, Any] = change,
                     number: int = number,
-                    source: Source = source,
+                    group: tuple[Source, ...] = group,
                 ) -> dict[str, Any]:
-                    trial = run_sweep(
-                        image_set_of(source, record_of(c)),
+                    docs = trial_on_group(
+                        group,
+                        record_of(c),
                         c.measure_params,
-                        [change],
+                        change,
                         jobs=c.jobs,
                         backend=c.compute,
                         calibration=params.calibration,
-                    )[0]
-                    doc: dict[str, Any] = {"number": number, "overrides": change, **trial_figures(trial)}
-                    if single:  # one session: the trial's figures are its own (as they always were)
-                        doc.pop("positions")
-                    else:
-                        doc["session"] = source.session.id
-                    return doc
+                        cancelled=c.cancelled,
+                    )
+                    return {"number": number, "overrides": change, "sessions": docs}
 
-                name = f"trial {number}" if single else f"trial {number}, session {source.session.id}"
-                yield Step((number - 1) * len(sources) + j, name, (Compute(run, name),), {"trial": number})
+                ids = [s.session.id for s in group]
+                name = f"trial {number}, sessions {ids[0]}" + (f"-{ids[-1]}" if len(ids) > 1 else "")
+                yield Step((number - 1) * len(parts) + g, name, (Compute(run, name),), {"trial": number})
 
     def resume_prelude(self, params: SweepParams, ctx: PlanContext, next_step: Step) -> list[Step]:
         return []
@@ -154,19 +177,20 @@ class SweepPlan:
     ) -> dict[str, Any]:
         record = record_of(ctx)
         assert ctx.session_id is not None
-        done = [s.data for s in record.steps(ctx.session_id) if s.state == "done" and "number" in s.data]
+        rows = [s for s in record.steps(ctx.session_id) if s.state == "done" and "number" in s.data]
+        done = [s.data for s in sorted(rows, key=lambda s: s.index)]
         if params.session is not None:
             trials = sorted(done, key=lambda t: t["number"])
             source: str | None = record.get_session(params.session).id
             sessions = None
         else:
             # a selection: each trial's per-session figures, in the selection's order, pooled
-            sessions = list(dict.fromkeys(t["session"] for t in done))
             by_trial: dict[int, list[dict[str, Any]]] = {}
             for t in done:
-                by_trial.setdefault(t["number"], []).append(
-                    {k: t[k] for k in ("session", "error", "positions", *FIGURES)}
+                by_trial.setdefault(t["number"], []).extend(
+                    {k: s[k] for k in ("session", "error", "positions", *FIGURES)} for s in t["sessions"]
                 )
+            sessions = [s["session"] for s in next(iter(by_trial.values()), [])]
             overrides = {t["number"]: t["overrides"] for t in done}
             trials = [pooled(n, overrides[n], by_trial[n]) for n in sorted(by_trial)]
             source = None
