@@ -117,37 +117,54 @@ class ReanalysePlan:
 
     def steps(self, params: ReanalyseParams, ctx: PlanContext) -> Iterator[Step]:
         sources = self.sources(params, ctx)  # every session checked before any task is sent
-        index = 0
-        for source in sources:
-            caps = source.captures
-            for k in range(0, len(caps), CHUNK):
-                chunk = caps[k : k + CHUNK]
+        # the captures of every source in turn, CHUNK per step: small sessions share a step (and the
+        # backend's tasks), measured together wherever they are measured with the same parameters
+        work = [(source.session, cap) for source in sources for cap in source.captures]
+        for k in range(0, len(work), CHUNK):
+            chunk = work[k : k + CHUNK]
 
-                def run(
-                    c: PlanContext, chunk: tuple[CaptureRow, ...] = chunk, row: SessionRow = source.session
-                ) -> dict[str, Any]:
-                    rec = record_of(c)
-                    assert c.session_id is not None
-                    measure = c.measure_params if params.session is not None else own_params(row, c)
-                    paths = [Path(rec.data_dir) / cap.path for cap in chunk]
+            def run(c: PlanContext, chunk: list[tuple[SessionRow, CaptureRow]] = chunk) -> dict[str, Any]:
+                rec = record_of(c)
+                assert c.session_id is not None
+                software = _software()
+                ok = 0
+                for measure, caps in self._by_params(params, chunk, c):
+                    paths = [Path(rec.data_dir) / cap.path for cap in caps]
                     results = measure_stored(paths, measure, c)
                     params_doc = measure.model_dump(mode="json")
-                    software = _software()
-                    ok = 0
-                    for cap, result in zip(chunk, results, strict=True):
+                    for cap, result in zip(caps, results, strict=True):
                         result["file"] = cap.path
                         rec.add_measurement(
                             c.session_id, cap.id, result, params=params_doc, software=software
                         )
                         ok += bool(result.get("ok"))
-                    return {"measured": len(chunk), "ok": ok}
+                return {"measured": len(chunk), "ok": ok}
 
-                name = f"captures {k + 1}-{k + len(chunk)}"
-                meta: dict[str, Any] = {"chunk": k // CHUNK}
-                if params.session is None:
-                    name, meta = f"session {source.session.id} {name}", {**meta, "session": source.session.id}
-                yield Step(index, name, (Compute(run),), meta)
-                index += 1
+            name = f"captures {k + 1}-{k + len(chunk)}" + (
+                "" if params.session is not None else " of the selection"
+            )
+            yield Step(k // CHUNK, name, (Compute(run),), {"chunk": k // CHUNK})
+
+    @staticmethod
+    def _by_params(
+        params: ReanalyseParams, chunk: Sequence[tuple[SessionRow, CaptureRow]], ctx: PlanContext
+    ) -> list[tuple[MeasureParams, list[CaptureRow]]]:
+        """A step's captures in runs measured with the same parameters (one source's, or several
+        consecutive sources' that recorded the same)."""
+        own: dict[str, MeasureParams] = {}
+        runs: list[tuple[MeasureParams, list[CaptureRow]]] = []
+        for row, cap in chunk:
+            if params.session is not None:
+                measure = ctx.measure_params
+            else:
+                if row.id not in own:
+                    own[row.id] = own_params(row, ctx)
+                measure = own[row.id]
+            if runs and runs[-1][0] == measure:
+                runs[-1][1].append(cap)
+            else:
+                runs.append((measure, [cap]))
+        return runs
 
     def resume_prelude(self, params: ReanalyseParams, ctx: PlanContext, next_step: Step) -> list[Step]:
         return []
