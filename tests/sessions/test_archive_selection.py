@@ -13,6 +13,7 @@ import pytest
 import sqlalchemy as sa
 
 from station.cli import main
+from station.kinds import summary
 from station.kinds.sweep.report import sweep_tables
 from station.kinds.sweep.results import SweepResults
 from station.plans import PlanError
@@ -144,6 +145,10 @@ def test_a_selection_by_filter_takes_the_kind_station_and_days_asked(
             assert redone.pop("scale_calibration") == original.pop("scale_calibration")
             assert redone == original
         assert len(record.measurements(again.id)) == 8 + 4
+    # the terminal's summary: each source's, under its session
+    text = summary("reanalyse", again.results)
+    assert text.index(f"session {old}:") < text.index(f"session {kept}:")
+    assert text.count("raw (rigid) error mean") == 2
 
 
 @pytest.mark.timeout(240)
