@@ -22,7 +22,7 @@ import numpy as np
 from station.plans import CaptureResult, PlanContext, PlanError
 
 if TYPE_CHECKING:
-    from station.record import Record
+    from station.record import MeasurementRow, Record
 
 HeightFunction = Callable[[Sequence[float]], float]
 
@@ -78,10 +78,17 @@ FRAMES_PER_ATTEMPT = 1000
 """A step's frames are numbered from attempt x FRAMES_PER_ATTEMPT (plans capture at most 100 per step)."""
 
 
-def stored_captures(record: Record, source: str, *, measured_in: str | None = None) -> list[CaptureResult]:
+def stored_captures(
+    record: Record,
+    source: str,
+    *,
+    measured_in: str | None = None,
+    measurements: Mapping[int, MeasurementRow] | None = None,
+) -> list[CaptureResult]:
     """The captures of session ``source``'s completed steps with the measurements session ``measured_in``
     recorded of them (the source's own by default): what a plan's analysis gets."""
-    measurements = {m.capture_id: m for m in record.measurements(measured_in or source)}
+    if measurements is None:  # given: read once for several sources (an archive selection's)
+        measurements = {m.capture_id: m for m in record.measurements(measured_in or source)}
     done = {s.index for s in record.steps(source) if s.state == "done"}
     caps = [c for c in record.captures(source) if c.step_index in done]
     # a step run again after an interruption keeps its earlier attempt's frames (nothing captured is

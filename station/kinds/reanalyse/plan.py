@@ -181,8 +181,9 @@ class ReanalysePlan:
         # a selection: each source analysed as its own kind on what this session measured of it
         assert ctx.session_id is not None
         out = []
+        measured = {m.capture_id: m for m in record.measurements(ctx.session_id)}  # read once, not per source
         for source in self.sources(params, ctx):
-            caps = stored_captures(record, source.session.id, measured_in=ctx.session_id)
+            caps = stored_captures(record, source.session.id, measurements=measured)
             own = replace(ctx, measure_params=own_params(source.session, ctx))
             out.append(self._analyse_one(source.session, own, caps))
         return {"sessions": out, "checks": [c for one in out for c in _named_checks(one)]}
