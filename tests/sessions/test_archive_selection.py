@@ -13,7 +13,7 @@ import pytest
 import sqlalchemy as sa
 
 from station.cli import main
-from station.kinds import summary
+from station.kinds import summary, table_rows
 from station.kinds.sweep.report import sweep_tables
 from station.kinds.sweep.results import SweepResults
 from station.plans import PlanError
@@ -88,6 +88,14 @@ def test_a_sweep_ranks_its_trials_over_every_session_of_a_selection(archive: Arc
         ),
     )
     assert results["best"] == by_hand["number"]
+
+    # the CSV: per trial, its figures over the selection, then each session's
+    rows = table_rows("sweep", results)
+    assert len(rows) == 4 * (1 + 3)
+    assert [r["session"] for r in rows[:4]] == ["all", *archive.validations]
+    assert rows[0]["parallelogram_mean_um"] == trials[0]["parallelogram_mean_um"]
+    assert rows[2]["parallelogram_mean_um"] == trials[0]["sessions"][1]["parallelogram_mean_um"]
+    assert rows[2]["overrides.testwidth"] == 3
 
     # a session's figures in the selection are that session's own sweep's
     alone = _run("sweep", archive.data, {"session": archive.validations[1], "grid": GRID}).results
