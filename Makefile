@@ -52,6 +52,7 @@ bench: setup
 	$(BIN)/python -m bench.ruler_bench
 	$(BIN)/python -m bench.station_bench
 	$(BIN)/python -m bench.compute_bench
+	$(BIN)/python -m bench.archive_bench
 	$(BIN)/python -m bench.service_load
 	$(BIN)/python -m bench.service_memory
 	$(BIN)/python -m bench.api_fuzz

@@ -60,6 +60,17 @@ def summary(kind: str, results: Mapping[str, Any]) -> str:
     """A few lines for the terminal; ``station report`` writes the full tables and figures."""
     if not results:
         return "  no results"
+    sources = results.get("sessions")
+    if KINDS.get(kind) is not None and KINDS[kind].inner is not None and isinstance(sources, list):
+        # a re-analysis of an archive selection: each source's, under its session
+        return (
+            "\n".join(
+                f"  session {one.get('source_session')}:\n{summary(kind, one)}"
+                for one in sources
+                if isinstance(one, Mapping)
+            )
+            or "  no results"
+        )
     inner = _inner(kind, results)
     if inner is not None:
         return summary(*inner)

@@ -1,5 +1,7 @@
 """What a plan's analysis reads of the station's configuration: the arm's reference pose and the camera's
-height above the artifact plane (from the robot's safety settings and the nominal kinematics).
+height above the artifact plane (from the robot's safety settings and the nominal kinematics); and what
+it reads of a stored session: its captures with the measurements a session recorded of them
+(``stored_captures``).
 
 While a session runs, the runner reads them from the station's configuration (``station.runner``). When a
 stored session is measured again (``reanalyse``), its plan reads them from the configuration the session
@@ -17,10 +19,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from station.plans import PlanContext, PlanError
+from station.plans import CaptureResult, PlanContext, PlanError
 
 if TYPE_CHECKING:
-    from station.record import Record
+    from station.record import MeasurementRow, Record
 
 HeightFunction = Callable[[Sequence[float]], float]
 
@@ -70,3 +72,45 @@ def record_of(ctx: PlanContext) -> Record:
     if ctx.record is None:
         raise PlanError("this plan reads a stored session: it needs the record")
     return ctx.record
+
+
+FRAMES_PER_ATTEMPT = 1000
+"""A step's frames are numbered from attempt x FRAMES_PER_ATTEMPT (plans capture at most 100 per step)."""
+
+
+def stored_captures(
+    record: Record,
+    source: str,
+    *,
+    measured_in: str | None = None,
+    measurements: Mapping[int, MeasurementRow] | None = None,
+) -> list[CaptureResult]:
+    """The captures of session ``source``'s completed steps with the measurements session ``measured_in``
+    recorded of them (the source's own by default): what a plan's analysis gets."""
+    if measurements is None:  # given: read once for several sources (an archive selection's)
+        measurements = {m.capture_id: m for m in record.measurements(measured_in or source)}
+    done = {s.index for s in record.steps(source) if s.state == "done"}
+    caps = [c for c in record.captures(source) if c.step_index in done]
+    # a step run again after an interruption keeps its earlier attempt's frames (nothing captured is
+    # lost); the analysis takes the attempt that completed: the latest
+    latest: dict[int, int] = {}
+    for c in caps:
+        latest[c.step_index] = max(latest.get(c.step_index, 0), c.frame_index // FRAMES_PER_ATTEMPT)
+    out = []
+    for cap in caps:
+        if cap.frame_index // FRAMES_PER_ATTEMPT != latest[cap.step_index]:
+            continue
+        m = measurements.get(cap.id)
+        out.append(
+            CaptureResult(
+                cap.id,
+                cap.step_index,
+                cap.frame_index,
+                cap.meta,
+                m.result if m else None,
+                cap.width,
+                cap.height,
+                cap.z_mm,
+            )
+        )
+    return out

@@ -34,6 +34,7 @@ session's hold on the devices), ``_resume`` (the session created, its steps on a
 context), ``_outcome`` (the analysis and what a passed validation leaves).
 """
 
+from station.plans._recorded import FRAMES_PER_ATTEMPT, stored_captures
 from station.runner._actions import HANDLERS, ActionExecutor, Handler, require, step_moves
 from station.runner._control import SessionControl
 from station.runner._journal import Journal, reconcile
@@ -44,7 +45,6 @@ from station.runner._states import (
     ACTIVE_STATES,
     EARLY_FAILURE_CAPTURES,
     FINAL_STATES,
-    FRAMES_PER_ATTEMPT,
     PRELUDE_BASE,
     PreflightError,
     Progress,
@@ -53,7 +53,7 @@ from station.runner._states import (
     SessionState,
     software_info,
 )
-from station.runner._store import Grabbed, StepRun, StorePipeline, stored_captures
+from station.runner._store import Grabbed, StepRun, StorePipeline
 
 __all__ = [
     "ACTIVE_STATES",

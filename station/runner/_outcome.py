@@ -10,10 +10,10 @@ from pydantic import BaseModel
 
 from station import scale_calibration
 from station.plans import Plan, PlanContext, PlanError
+from station.plans._recorded import stored_captures
 from station.record import Record, RecordError
 from station.runner._journal import Journal
 from station.runner._states import SessionState
-from station.runner._store import stored_captures
 
 
 @dataclass(frozen=True)
@@ -46,7 +46,8 @@ def captures_of(plan: Plan, params: BaseModel, record: Record, sid: str) -> list
     """What the plan's analysis (and its live gates) read: the stored captures with this session's
     measurements (of the source session's captures, for a re-analysis)."""
     source_of = getattr(plan, "source_session", None)
-    source = record.get_session(source_of(params)).id if source_of is not None else sid
+    named = source_of(params) if source_of is not None else None  # None: an archive selection
+    source = record.get_session(named).id if named is not None else sid
     return stored_captures(record, source, measured_in=sid)
 
 

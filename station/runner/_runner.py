@@ -17,6 +17,7 @@ from station.config import StationDevices
 from station.devices import DeviceError, MotionStoppedError, OperatorCancelledError
 from station.plans import Plan, PlanContext, PlanError, Step
 from station.plans._gates import verdict
+from station.plans._recorded import FRAMES_PER_ATTEMPT
 from station.prompts import PromptEvent
 from station.record import EventRow, Record, RecordError, SessionRow, station_lock
 from station.runner._actions import ActionExecutor, step_moves
@@ -27,7 +28,6 @@ from station.runner._outcome import analyse, captures_of, write_scale_calibratio
 from station.runner._preflight import find_problems, route_to_reference
 from station.runner._resume import create_session, plan_context, session_steps
 from station.runner._states import (
-    FRAMES_PER_ATTEMPT,
     AbortRequestedError,
     PreflightError,
     Progress,

@@ -26,8 +26,6 @@ from station.plans import Step
 
 PRELUDE_BASE = 1_000_000
 """Step indices of resume preludes start here (plan steps are numbered from 0)."""
-FRAMES_PER_ATTEMPT = 1000
-"""A step's frames are numbered from attempt x FRAMES_PER_ATTEMPT (plans capture at most 100 per step)."""
 EARLY_FAILURE_CAPTURES = 3
 """A session whose first this-many captures all fail to measure stops: something is misconfigured."""
 

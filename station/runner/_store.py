@@ -16,11 +16,11 @@ from typing import Any
 from station import __version__
 from station.batch import measure_file
 from station.devices import Frame
-from station.plans import CaptureResult, Step
+from station.plans import Step
 from station.plans._ruler import capture_params
 from station.record import Record
 from station.runner._journal import Journal
-from station.runner._states import EARLY_FAILURE_CAPTURES, FRAMES_PER_ATTEMPT, SessionError
+from station.runner._states import EARLY_FAILURE_CAPTURES, SessionError
 from station.vision import MeasureParams
 
 log = logging.getLogger("station.runner")
@@ -178,34 +178,3 @@ class StorePipeline:
             )
             ids.append(cap.id)
         return ids
-
-
-def stored_captures(record: Record, source: str, *, measured_in: str | None = None) -> list[CaptureResult]:
-    """The captures of session ``source``'s completed steps with the measurements session ``measured_in``
-    recorded of them (the source's own by default): what a plan's analysis gets."""
-    measurements = {m.capture_id: m for m in record.measurements(measured_in or source)}
-    done = {s.index for s in record.steps(source) if s.state == "done"}
-    caps = [c for c in record.captures(source) if c.step_index in done]
-    # a step run again after an interruption keeps its earlier attempt's frames (nothing captured is
-    # lost); the analysis takes the attempt that completed: the latest
-    latest: dict[int, int] = {}
-    for c in caps:
-        latest[c.step_index] = max(latest.get(c.step_index, 0), c.frame_index // FRAMES_PER_ATTEMPT)
-    out = []
-    for cap in caps:
-        if cap.frame_index // FRAMES_PER_ATTEMPT != latest[cap.step_index]:
-            continue
-        m = measurements.get(cap.id)
-        out.append(
-            CaptureResult(
-                cap.id,
-                cap.step_index,
-                cap.frame_index,
-                cap.meta,
-                m.result if m else None,
-                cap.width,
-                cap.height,
-                cap.z_mm,
-            )
-        )
-    return out

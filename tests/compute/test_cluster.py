@@ -246,3 +246,24 @@ def test_the_service_reanalyses_on_the_configured_cluster(
         host.shutdown()
     assert measured(stored.data, sid) == measured(stored.data, stored.id)
     assert "measuring on a Dask LocalCluster of 1 worker" in caplog.messages  # where it measured
+
+
+def test_an_archive_selection_on_the_cluster_is_the_local_run(two: Cluster, tmp_path: Path) -> None:
+    """Issue 24, item 3 on a cluster: a sweep and a re-analysis of a selection measure each group of
+    sessions in one call on the workers, with the numbers of the local pool."""
+    data = tmp_path / "data"
+    ids = []
+    for n in (2, 1):
+        out = run_session("validation", sim=True, params={"steps_per_side": n}, data=data)
+        assert out.state == "succeeded", out.error
+        ids.append(out.id)
+    for kind, params in (
+        ("sweep", {"sessions": ids, "grid": {"skip": [1, 2]}}),
+        ("reanalyse", {"sessions": ids}),
+    ):
+        on_cluster = run_session(kind, params=params, data=data, compute=ComputeSpec(two.address))
+        here = run_session(kind, params=params, data=data, compute=ComputeSpec())
+        assert (on_cluster.state, here.state) == ("succeeded", "succeeded"), (on_cluster.error, here.error)
+        assert on_cluster.results == here.results
+    assert len(measured(data, on_cluster.id)) == 8 + 4  # the re-analysis recorded every capture
+    assert measured(data, on_cluster.id) == measured(data, here.id)

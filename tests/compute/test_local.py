@@ -2,11 +2,16 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
+import signal
 import subprocess
 import sys
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
+import psutil
 import pytest
 
 from station.batch import FileResult
@@ -76,3 +81,32 @@ def test_a_script_without_a_main_guard_gets_one_clear_error_not_a_worker_died_pe
     assert "worker_died" not in done.stdout
     assert "ComputeError: the local pool's processes die before measuring anything" in done.stderr
     assert 'guard its top level with `if __name__ == "__main__":`' in done.stderr
+
+
+def test_a_frame_whose_fresh_worker_died_before_starting_on_it_is_measured_again_not_blamed(
+    tmp_path: Path, frames: list[Path], reference: list[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The flaky failure of the test above, made deterministic: after a worker's death, the first fresh
+    process for the suspects dies (killed from outside) before it takes a frame. That frame never ran:
+    it is measured again in another process, and only the frame that kills its worker is blamed."""
+    real = LocalBackend._check_starts
+    killed: list[int] = []
+
+    def started_then_lost(pool: ProcessPoolExecutor) -> None:
+        real(pool)
+        if not killed:
+            pid = pool.submit(os.getpid).result()
+            os.kill(pid, signal.SIGKILL)
+            with contextlib.suppress(psutil.NoSuchProcess):
+                psutil.Process(pid).wait(timeout=30)  # dead before any frame is sent
+            killed.append(pid)
+
+    monkeypatch.setattr(LocalBackend, "_check_starts", staticmethod(started_then_lost))
+    poison = tmp_path / "poison.png"
+    poison.write_bytes(frames[0].read_bytes())
+    # 12 frames in batches of 2: the poison shares its batch with frames[10], the first suspect
+    items = [*frames[:11], poison]
+    results = list(LocalBackend(2, measure_one=dies_on_poison).measure(items, PARAMS))
+    assert killed, "no fresh process was started for the suspects"
+    assert [i for i, r in enumerate(results) if r.code == "worker_died"] == [11]
+    assert lines(results[:11]) == reference[:11]

@@ -1,5 +1,7 @@
 """The ``reanalyse`` kind's results: the source session's kind and its results measured again, held under
-that kind's name (``{"source_session", "kind": "validation", "validation": {...}, "checks"}``)."""
+that kind's name (``{"source_session", "kind": "validation", "validation": {...}, "checks"}``); over an
+archive selection, one such object per source under ``sessions`` and their checks, each named after its
+session (``{"sessions": [...], "checks"}``)."""
 
 from __future__ import annotations
 
@@ -21,11 +23,19 @@ class ReanalyseResults(ResultsModel):
     source_session: str | None = None
     kind: str | None = Field(None, description="the source session's kind: its results are under this name")
     checks: list[Check] = Field(default_factory=list)
+    sessions: list[ReanalyseResults] | None = Field(
+        None, description="an archive selection: each source's re-analysis, in the selection's order"
+    )
 
 
 def inner_results(raw: Mapping[str, Any], kinds: Collection[str]) -> tuple[str, Any]:
     """(the source's kind, its results) of a re-analysis's results; PlanError when they name neither."""
     named = raw.get("kind")
+    if named is None and isinstance(raw.get("sessions"), list):
+        raise PlanError(
+            f"a re-analysis of {len(raw['sessions'])} sessions holds each source's results under "
+            "'sessions' (see them with: station sessions --json)"
+        )
     if named is None:
         found = [k for k in kinds if raw.get(k) is not None]
         named = found[0] if len(found) == 1 else None

@@ -1,5 +1,5 @@
 """How a ``sweep`` session's results are shown: the terminal's summary and the CSV's rows (one per
-trial)."""
+trial; over a selection, one per trial and one per trial and session)."""
 
 from __future__ import annotations
 
@@ -14,4 +14,17 @@ def summary(results: Mapping[str, Any]) -> str:
 
 
 def rows(results: Mapping[str, Any]) -> list[dict[str, Any]]:
-    return [flat(t) for t in results.get("trials") or [] if isinstance(t, dict)]
+    """One row per trial; over an archive selection, the trial's figures over every session
+    (``session`` = ``all``) then one row per session."""
+    out = []
+    for t in results.get("trials") or []:
+        if not isinstance(t, dict):
+            continue
+        per = t.get("sessions")
+        if not isinstance(per, list):
+            out.append(flat(t))
+            continue
+        out.append(flat({**{k: v for k, v in t.items() if k != "sessions"}, "session": "all"}))
+        head = {"number": t.get("number"), "overrides": t.get("overrides") or {}}
+        out.extend(flat({**head, **s}) for s in per if isinstance(s, dict))
+    return out

@@ -62,10 +62,48 @@ def sweep_tables(r: SweepResults, mode: str | None) -> dict[str, Table]:
     notes = sweep_note(mode, seed_layout=seed_layout, fit=sweep_fit(r)).split("\n")
     if r.source_session is not None:
         notes.append(f"images of validation session {r.source_session}")
+    if r.sessions is not None:
+        notes.append(
+            f"images of {len(r.sessions)} validation sessions: MeanE over all their positions (each "
+            "session's weighted by its positions), MaxE the largest of any session"
+        )
     out = {"sweep": Table("Parameter study (Table 1)", tuple(headers), tuples(rows), tuple(notes), marked)}
+    if r.sessions is not None:
+        out["sweep_sessions"] = session_table(r)
     if seed_layout:
         out["seed_table_1"] = make_table("The seed's Table 1", *seed_table_1())
     return out
+
+
+def session_table(r: SweepResults) -> Table:
+    """Each session of a selection: its positions, and each trial's MeanE / MaxE there (um, after the fit
+    Table 1 uses); the best trial's column first after the positions."""
+    fit = "parallelogram_" if sweep_fit(r) == "parallelogram" else ""
+    order = sorted(r.trials, key=lambda t: t.number != r.best)
+    headers = [
+        "session",
+        "positions",
+        *(f"trial {t.number}{' (best)' if t.number == r.best else ''}" for t in order),
+    ]
+    cells: dict[str, dict[int, str]] = {}
+    positions: dict[str, int] = {}
+    for t in r.trials:
+        for s in t.sessions or []:
+            mean, mx = getattr(s, f"{fit}mean_um"), getattr(s, f"{fit}max_um")
+            cells.setdefault(s.session, {})[t.number] = (
+                "failed" if mean is None or mx is None else f"{mean:.3f} / {mx:.3f}"
+            )
+            positions[s.session] = max(positions.get(s.session, 0), s.positions)
+    rows = [
+        (sid, str(positions.get(sid, 0)), *(cells.get(sid, {}).get(t.number, "-") for t in order))
+        for sid in r.sessions or []
+    ]
+    return make_table(
+        "Parameter study per session (MeanE / MaxE, um)",
+        headers,
+        rows,
+        f"errors after the {sweep_fit(r)} fit, each session's positions on their own",
+    )
 
 
 def sweep_figure(r: SweepResults) -> NamedFigure:
