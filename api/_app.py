@@ -20,6 +20,7 @@ from api._page import router as page_router
 from api._routes_events import router as events_router
 from api._routes_plans import router as plans_router
 from api._routes_prompt import router as prompt_router
+from api._routes_safety import router as safety_router
 from api._routes_scale_calibration import router as scale_calibration_router
 from api._routes_sessions import router as sessions_router
 from api._routes_station import router as station_router
@@ -97,6 +98,7 @@ def create_app(
     for router in (
         station_router,
         teach_router,
+        safety_router,
         plans_router,
         scale_calibration_router,
         sessions_router,

@@ -4,6 +4,7 @@ none of which moves the arm; a teach rewrites the configuration file with its co
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Any
 
@@ -11,11 +12,11 @@ import httpx
 import numpy as np
 import pytest
 
-from sim.station import taught_artifacts_mm, taught_normals, taught_turns_deg
+from sim.station import sim_fixtures
 from sim.world import REFERENCE_JOINTS_DEG
 from station.config import load_config
 from station.worker import SessionHost
-from tests.api.conftest import Served, acknowledge_stop, remote_client, wait_final, wait_state
+from tests.api.conftest import TOKEN, Served, acknowledge_stop, remote_client, wait_final, wait_state
 from tests.api.teach_station import lab_config, served_with_config
 
 pytestmark = pytest.mark.timeout(240)
@@ -36,6 +37,10 @@ def camera_pose(host: SessionHost) -> list[list[float]]:
     """The simulated camera's true pose in the base frame (4x4)."""
     pose: list[list[float]] = host.devices.truth.world.camera_pose().tolist()
     return pose
+
+
+def fixture_count(host: SessionHost) -> int:
+    return len(sim_fixtures(host.devices.truth.world))
 
 
 def latch(host: SessionHost) -> None:
@@ -156,21 +161,30 @@ def test_motion_from_another_machine_is_refused_and_nothing_moves(served: Served
             assert "--allow-remote-motion" in doc["detail"]
         assert commanded(c) == start
 
+        # the safety panel's reading says so, to either client
+        here = c.get("/api/v1/station/safety").json()
+        there = remote.get("/api/v1/station/safety").json()
+        assert here["keep_out_volumes"] == served.service.in_worker(fixture_count) > 0
+        assert here["max_speed_pct"] == 80.0  # the sim cell's cap
+        assert here["latched"] is None
+        assert here["local_acknowledgement"] is True
+        assert (here["remote_motion"], here["local"], here["motion"]) == (False, True, True)
+        assert (there["remote_motion"], there["local"], there["motion"]) == (False, False, False)
+        served.app.state.access = dataclasses.replace(served.app.state.access, remote_motion=True)
+        there = remote.get("/api/v1/station/safety").json()
+        assert (there["remote_motion"], there["local"], there["motion"]) == (True, False, True)
+        r = remote.post(JOG, json={"mode": "joint", "joint": 1, "delta_deg": 0.5})
+        assert r.status_code == 200, r.text
+
 
 def test_a_cookie_request_from_another_page_is_refused(served: Served) -> None:
-    with httpx.Client(base_url=served.base, cookies={"station_token": served_token()}) as c:
+    with httpx.Client(base_url=served.base, cookies={"station_token": TOKEN}) as c:
         r = c.post(
             JOG, json={"mode": "joint", "joint": 1, "delta_deg": 1.0}, headers={"origin": "http://evil.test"}
         )
         problem(r, 403, "cross_origin")
     with httpx.Client(base_url=served.base) as c:
         problem(c.post(JOG, json={"mode": "joint", "joint": 1, "delta_deg": 1.0}), 401, "token_required")
-
-
-def served_token() -> str:
-    from tests.api.conftest import TOKEN
-
-    return TOKEN
 
 
 def test_a_latched_stop_refuses_jog_and_teach_until_acknowledged_at_the_station(served: Served) -> None:
@@ -216,15 +230,6 @@ def test_teaching_without_a_configuration_file_says_how_to_start_the_service(ser
 
 
 # ------------------------------------------------------------------ teach, with a configuration file
-
-
-def truth_of(host: SessionHost) -> dict[str, Any]:
-    world = host.devices.truth.world
-    return {
-        "artifacts": taught_artifacts_mm(world, digits=None),
-        "normals": taught_normals(world, digits=None),
-        "turns": taught_turns_deg(world, digits=None),
-    }
 
 
 def test_teaching_the_sensor_mount_and_the_reference_rewrites_the_file_with_its_comments(
