@@ -24,6 +24,7 @@ reference_joints_deg = {reference}
 
 [camera]
 driver = "sim"
+mount = {{ translation_mm = [0.0, 0.0, 120.0] }}   # the flange bracket's drawing: the pinhole 120 mm out
 
 [distance_sensor]
 driver = "keyence_il"
