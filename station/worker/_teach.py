@@ -16,6 +16,8 @@ again): what a lab has before it teaches its cell.
 
 from __future__ import annotations
 
+import logging
+import threading
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
@@ -24,9 +26,12 @@ from station.config import StationConfig, StationDevices
 from station.devices import Robot
 from station.jog import JOG_SPEED_PCT, JogError, jog
 from station.kinematics import Kinematics
-from station.worker._common import NotAvailableError
+from station.record import station_lock
+from station.worker._common import NotAvailableError, WorkerSpec
 
-__all__ = ["TEACH_WHATS", "jog_arm", "teach_on", "with_taught"]
+__all__ = ["TEACH_WHATS", "ArmTasks", "jog_arm", "teach_on", "with_taught"]
+
+log = logging.getLogger(__name__)
 
 TEACH_WHATS = ("reference", "artifact", "sensor-mount")
 """What can be taught (``station teach``'s and the API's names)."""
@@ -175,3 +180,50 @@ def teach_on(devices: StationDevices, path: Path | None, what: str, name: str | 
         "backup": done.backup.name,
         "changes": list(done.changes),
     }
+
+
+class ArmTasks:
+    """The worker's jog and teach (``rpc_jog``, ``rpc_teach``), mixed into ``SessionHost``: each runs
+    while no session runs and nothing else moves the arm, holding the station's lock, the arm marked as
+    moving meanwhile (``_motion`` says how, to a refused caller)."""
+
+    spec: WorkerSpec
+    devices: Any
+    record: Any
+    _lock: threading.RLock
+    _moving: bool
+    _motion: str = "on its way to its reference pose"
+
+    def _settle(self) -> None:  # pragma: no cover - SessionHost's
+        raise NotImplementedError
+
+    def _idle_robot(self, what: str) -> Any:  # pragma: no cover - SessionHost's
+        raise NotImplementedError
+
+    def _arm_task(self, motion: str, lock_name: str, fn: Callable[[], dict[str, Any]]) -> dict[str, Any]:
+        """``fn()`` while no session runs and nothing else moves the arm (ConflictError otherwise), holding
+        the station's lock; the arm is ``motion`` meanwhile."""
+        self._settle()
+        with self._lock:
+            if self._idle_robot("move it") is None:
+                raise NotAvailableError("this station has no robot to move ([robot] in the configuration)")
+            self._moving, self._motion = True, motion
+        try:
+            with station_lock(self.record.data_dir, lock_name):
+                return fn()
+        finally:
+            with self._lock:
+                self._moving = False
+
+    def rpc_jog(self, request: Mapping[str, Any]) -> dict[str, Any]:
+        """One jog (:func:`jog_arm`); JogError, SpeedCapError, StopLatchedError: nothing moved."""
+        return self._arm_task("being jogged", "jog", lambda: jog_arm(self.devices, request))
+
+    def rpc_teach(self, what: str, name: str | None) -> dict[str, Any]:
+        """Teach ``what`` into the station's configuration file (:func:`teach_on`); NotAvailableError when
+        the service has no configuration file to write (said once the arm is free and its stop not
+        latched: what to do first comes first)."""
+        path = self.spec.config
+        done = self._arm_task("being taught", "teach", lambda: teach_on(self.devices, path, what, name))
+        log.info("taught %s into %s (the old file is %s)", what, done["config"], done["backup"])
+        return done

@@ -43,7 +43,7 @@ from station.worker._common import (
     StationInfo,
     WorkerSpec,
 )
-from station.worker._teach import jog_arm, teach_on, with_taught
+from station.worker._teach import ArmTasks, with_taught
 
 log = logging.getLogger(__name__)
 
@@ -51,7 +51,7 @@ log = logging.getLogger(__name__)
 # --------------------------------------------------------------------------- the worker's side
 
 
-class SessionHost:
+class SessionHost(ArmTasks):
     """The worker's station: its record, devices, and at most one running session.
 
     The methods named ``rpc_*`` are what the front end calls; each runs in a thread of its own so that
@@ -82,7 +82,6 @@ class SessionHost:
         self._thread: threading.Thread | None = None
         self._closed = False
         self._moving = False  # the arm is on its way to the reference pose (rpc_to_reference)
-        self._motion = "on its way to its reference pose"  # what moves it (a jog, a teach) while _moving
         self._closing = threading.Event()
         self._listeners: list[Callable[[EventRow], None]] = []
         self._prompt_watch: threading.Thread | None = None
@@ -450,38 +449,6 @@ class SessionHost:
                 self._moving = False
         log.info("the arm is at its reference pose after %d move(s)", len(result.moves))
         return result.model_dump(mode="json")
-
-    def _arm_task(self, motion: str, lock_name: str, fn: Callable[[Any], dict[str, Any]]) -> dict[str, Any]:
-        """``fn(robot)`` while no session runs and nothing else moves the arm (ConflictError otherwise),
-        holding the station's lock; the arm is ``motion`` meanwhile (what a refused caller is told)."""
-        self._settle()
-        with self._lock:
-            robot = self._idle_robot("move it")
-            if robot is None:
-                raise NotAvailableError("this station has no robot to move ([robot] in the configuration)")
-            self._moving, self._motion = True, motion
-        try:
-            with station_lock(self.record.data_dir, lock_name):
-                return fn(robot)
-        finally:
-            with self._lock:
-                self._moving = False
-
-    def rpc_jog(self, request: Mapping[str, Any]) -> dict[str, Any]:
-        """One jog (``station.worker._teach.jog_arm``); JogError, SpeedCapError, StopLatchedError: nothing
-        moved."""
-        return self._arm_task("being jogged", "jog", lambda _robot: jog_arm(self.devices, request))
-
-    def rpc_teach(self, what: str, name: str | None) -> dict[str, Any]:
-        """Teach ``what`` into the station's configuration file (``station.worker._teach.teach_on``);
-        NotAvailableError when the service has no configuration file to write (said once the arm is free
-        and its stop not latched: what to do first comes first)."""
-        path = self.spec.config
-        done = self._arm_task(
-            "being taught", "teach", lambda _robot: teach_on(self.devices, path, what, name)
-        )
-        log.info("taught %s into %s (the old file is %s)", what, done["config"], done["backup"])
-        return done
 
     def _max_step(self) -> float:
         robot = self.devices.config.robot
