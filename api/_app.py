@@ -20,9 +20,11 @@ from api._page import router as page_router
 from api._routes_events import router as events_router
 from api._routes_plans import router as plans_router
 from api._routes_prompt import router as prompt_router
+from api._routes_safety import router as safety_router
 from api._routes_scale_calibration import router as scale_calibration_router
 from api._routes_sessions import router as sessions_router
 from api._routes_station import router as station_router
+from api._routes_teach import router as teach_router
 from api._server import ServeLimits
 from api._service import StationService
 from station import __version__
@@ -95,6 +97,8 @@ def create_app(
     app.add_middleware(HostCheck, hosts=hosts or AllowedHosts.of())
     for router in (
         station_router,
+        teach_router,
+        safety_router,
         plans_router,
         scale_calibration_router,
         sessions_router,

@@ -35,6 +35,7 @@ from station.record import (
 )
 from station.runner import PreflightError, SessionError
 from station.scale_calibration import NothingToRevertError, ScaleCalibrationError
+from station.teach import TeachError
 
 log = logging.getLogger(__name__)
 
@@ -67,6 +68,7 @@ STATUS_OF: tuple[tuple[type[Exception], int, str], ...] = (
     (RemoteAcknowledgementError, 403, "remote_acknowledgement"),
     (StopLatchedError, 409, "stop_latched"),
     (MotionRejectedError, 422, "motion_rejected"),
+    (TeachError, 422, "teach_failed"),
     (DeviceError, 502, "device_error"),
 )
 

@@ -42,6 +42,7 @@ from station.worker._common import (
     StationInfo,
     WorkerSpec,
 )
+from station.worker._teach import ArmTasks, with_taught
 
 log = logging.getLogger(__name__)
 
@@ -49,7 +50,7 @@ log = logging.getLogger(__name__)
 # --------------------------------------------------------------------------- the worker's side
 
 
-class SessionHost:
+class SessionHost(ArmTasks):
     """The worker's station: its record, devices, and at most one running session.
 
     The methods named ``rpc_*`` are what the front end calls; each runs in a thread of its own so that
@@ -68,6 +69,8 @@ class SessionHost:
         try:
             if spec.sim:
                 self.devices = open_sim_station(operator=not spec.manual_prompts, **spec.sim_options)
+                if self.config is not None:  # the lab's file: its taught values, not the sim's truth
+                    self.devices.config = with_taught(self.devices.config, self.config)
             elif self.config is not None:
                 self.devices = open_station(self.config)
         except BaseException:
@@ -375,7 +378,7 @@ class SessionHost:
                 " once it has ended (or stop or abort it first)"
             )
         if self._moving:
-            raise ConflictError(f"the arm is on its way to its reference pose: {what} once it has arrived")
+            raise ConflictError(f"the arm is {self._motion}: {what} once it has finished")
         robot = self.devices.robot if self.devices is not None else None
         if robot is None:
             return None
@@ -416,7 +419,7 @@ class SessionHost:
             robot = self._idle_robot("move it")
             if robot is None or self.devices.reference_joints_deg is None:
                 raise NotAvailableError(NO_REFERENCE)
-            self._moving = True
+            self._moving, self._motion = True, "on its way to its reference pose"
         try:
             with station_lock(self.record.data_dir, "to-reference"):
                 result = arm_to_reference(robot, self.devices.reference_joints_deg, self._max_step())

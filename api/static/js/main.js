@@ -4,6 +4,7 @@
 
 import { Unreachable, api, watch } from "./api.js";
 import { onConnection, suspect } from "./connection.js";
+import { loadSafety, setUpJog, updateJogControls } from "./jog.js";
 import { onEvent, openEvents } from "./events.js";
 import { setKinds, setUpForm } from "./form.js";
 import { renderHistory, setUpHistory } from "./history.js";
@@ -83,6 +84,7 @@ async function refresh() {
       loadScale(true); // a validation that passed its checks writes the scale calibration as it ends
     }
     showRobot(station);
+    loadSafety();
     loadScale();
     await loadPlans();
     setKinds(station.plans.filter((n) => page.plans.has(n)));
@@ -107,6 +109,7 @@ async function refresh() {
   } finally {
     refreshing = false;
     updateControls();
+    updateJogControls();
     if (again) {
       again = false;
       refresh();
@@ -153,9 +156,11 @@ document.addEventListener("DOMContentLoaded", async () => {
   setUpResults();
   setUpHistory(refresh);
   setUpStation(refresh);
+  setUpJog(refresh);
   setUpScale();
   setUpSession(refresh, () => {
     updateRobotControls();
+    updateJogControls();
     updateScaleControls();
   });
   onAnswered(refresh);

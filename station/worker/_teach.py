@@ -1,0 +1,229 @@
+"""Jogging and teaching in the worker, between sessions, in one connection each (connect, act, close), as
+``_arm`` moves the arm to its reference pose: the service's ``POST /station/robot/jog`` and
+``POST /station/teach/...``.
+
+A jog or a teach never clears a latched stop: it asks the robot first (``clear_stop`` releases nothing
+and raises ``StopLatchedError`` while a stop is latched) and nothing moves. Every motion is checked by the
+robot before it is sent (limits, step, keep-out along the path, the speed cap: ``station.jog``).
+
+A teach writes the station's configuration file (``station.teach.update_config``: comments kept, the
+old file backed up) and then applies the taught values to the configuration the worker's devices use
+(:func:`with_taught`), so that the next session, jog or ``to-reference`` uses them at once. A simulated
+station served with a configuration file (``ServiceSettings(sim=True, config=F)``) starts with that
+file's taught values in place of the ones the simulator computes from its truth (:func:`with_taught`
+again): what a lab has before it teaches its cell.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+from station.config import StationConfig, StationDevices
+from station.devices import Robot
+from station.jog import JOG_SPEED_PCT, JogError, jog
+from station.kinematics import Kinematics
+from station.record import station_lock
+from station.worker._common import NotAvailableError, WorkerSpec
+
+__all__ = ["TEACH_WHATS", "ArmTasks", "jog_arm", "teach_on", "with_taught"]
+
+log = logging.getLogger(__name__)
+
+TEACH_WHATS = ("reference", "artifact", "sensor-mount")
+"""What can be taught (``station teach``'s and the API's names)."""
+
+
+def with_taught(config: StationConfig, taught: StationConfig) -> StationConfig:
+    """``config`` with the taught values of ``taught`` (the configuration file as written): the reference
+    pose, ``[calibration]`` (artifacts, normals, turns, the optics' nominal values) and the distance
+    sensor mount's translation and rotation. The devices' own settings (ports, drivers, safety, the
+    sensor head's body) stay ``config``'s."""
+    update: dict[str, Any] = {}
+    if config.robot is not None and taught.robot is not None:
+        update["robot"] = config.robot.model_copy(
+            update={"reference_joints_deg": taught.robot.reference_joints_deg}
+        )
+    if taught.calibration is not None:
+        update["calibration"] = taught.calibration
+    if config.distance_sensor is not None and taught.distance_sensor is not None:
+        mount = config.distance_sensor.mount.model_copy(
+            update={
+                "translation_mm": taught.distance_sensor.mount.translation_mm,
+                "rotation_deg": taught.distance_sensor.mount.rotation_deg,
+            }
+        )
+        update["distance_sensor"] = config.distance_sensor.model_copy(update={"mount": mount})
+    return config.model_copy(update=update)
+
+
+def _jog_speed(config: StationConfig) -> float:
+    safety = config.robot.safety if config.robot is not None else {}
+    return float(safety.get("jog_speed_pct", JOG_SPEED_PCT))
+
+
+def jog_arm(devices: StationDevices, request: Mapping[str, Any]) -> dict[str, Any]:
+    """One jog (``{"mode": "joint", "joint", "delta_deg"}`` or ``{"mode": "camera", "axis", "delta"}``)
+    at the configuration's jog speed (``[robot] safety.jog_speed_pct``, default 10 %, within the cap);
+    what it did (``station.jog.JogResult.to_dict``). JogError, SpeedCapError, StopLatchedError: nothing
+    moved."""
+    robot: Robot | None = devices.robot
+    if robot is None:
+        raise JogError("this station has no robot to jog ([robot] in the configuration)")
+    config = devices.config
+    robot.connect()
+    try:
+        robot.clear_stop()  # releases nothing: raises while a stop is latched
+        if request["mode"] == "joint":
+            result = jog(
+                robot,
+                joint=int(request["joint"]),
+                delta=float(request["delta_deg"]),
+                speed_pct=_jog_speed(config),
+            )
+        else:
+            nominal = Kinematics(tool=config.camera_mount().matrix())
+            result = jog(
+                robot,
+                camera_axis=str(request["axis"]),
+                delta=float(request["delta"]),
+                nominal=nominal,
+                speed_pct=_jog_speed(config),
+            )
+    finally:
+        robot.close()
+    return result.to_dict()
+
+
+def _taught(
+    devices: StationDevices, what: str, name: str | None
+) -> tuple[dict[str, Any], Callable[..., list[str]]]:
+    from station import teach
+
+    rig = teach.rig_for(devices)
+    if what == "reference":
+        ref = teach.teach_reference(rig)
+        return (
+            {
+                "reference_joints_deg": list(ref.joints_deg),
+                "crossing_mm": list(ref.crossing_mm),
+                "center_px": list(ref.center_px),
+                "plane_rms_mm": ref.plane_rms_mm,
+            },
+            lambda doc: teach.set_reference(doc, ref.joints_deg),
+        )
+    if what == "artifact":
+        assert name is not None
+        art = teach.teach_artifact(rig)
+        return (
+            {
+                "name": name,
+                "position_mm": list(art.position_mm),
+                "normal": list(art.normal),
+                "turn_deg": art.turn_deg,
+                "joints_deg": list(art.joints_deg),
+                "center_px": list(art.center_px),
+                "plane_rms_mm": art.plane_rms_mm,
+            },
+            lambda doc: teach.set_artifact(doc, name, art.position_mm, art.normal, art.turn_deg),
+        )
+    fit, pairs = teach.teach_sensor_mount(rig)
+    return (
+        {
+            "translation_z_mm": fit.translation_z_mm,
+            "slope": fit.slope,
+            "expected_slope": fit.expected_slope,
+            "rms_mm": fit.rms_mm,
+            "pairs_mm": [list(p) for p in pairs],
+        },
+        lambda doc: teach.set_sensor_mount_z(doc, fit.translation_z_mm),
+    )
+
+
+def teach_on(devices: StationDevices, path: Path | None, what: str, name: str | None) -> dict[str, Any]:
+    """Teach ``what`` (``reference``, ``artifact`` with its ``name``, ``sensor-mount``) from the devices
+    (connected here, closed after), write it into the configuration at ``path`` (comments kept, the old
+    file backed up) and apply it to ``devices.config``. ``{"what", "taught", "config", "backup",
+    "changes"}`` (``config`` and ``backup``: the files' names, in the configuration's folder).
+    TeachError, ConfigurationError, StopLatchedError, MotionRejectedError: nothing was written;
+    NotAvailableError (nothing moved) without a configuration file (``path`` None)."""
+    from station.teach import TeachError, update_config
+
+    if what not in TEACH_WHATS:
+        raise TeachError(f"teach one of {', '.join(TEACH_WHATS)}, not {what!r}")
+    robot = devices.robot
+    if robot is None:
+        raise TeachError("teaching needs the robot ([robot] in the configuration)")
+    opened = [d for d in (robot, devices.camera, devices.distance_sensor) if d is not None]
+    try:
+        for device in opened:
+            device.connect()
+        robot.clear_stop()  # releases nothing: raises while a stop is latched
+        if path is None:
+            raise NotAvailableError(
+                "this service has no configuration file to teach into: start it with station serve"
+                " --config station.toml (a simulated station's taught values come from its truth)"
+            )
+        taught, edit = _taught(devices, what, name)
+        done = update_config(path, edit)
+    finally:
+        for device in reversed(opened):
+            device.close()
+    devices.config = with_taught(devices.config, done.config)
+    return {
+        "what": what,
+        "taught": taught,
+        "config": done.path.name,
+        "backup": done.backup.name,
+        "changes": list(done.changes),
+    }
+
+
+class ArmTasks:
+    """The worker's jog and teach (``rpc_jog``, ``rpc_teach``), mixed into ``SessionHost``: each runs
+    while no session runs and nothing else moves the arm, holding the station's lock, the arm marked as
+    moving meanwhile (``_motion`` says how, to a refused caller)."""
+
+    spec: WorkerSpec
+    devices: Any
+    record: Any
+    _lock: threading.RLock
+    _moving: bool
+    _motion: str = "on its way to its reference pose"
+
+    def _settle(self) -> None:  # pragma: no cover - SessionHost's
+        raise NotImplementedError
+
+    def _idle_robot(self, what: str) -> Any:  # pragma: no cover - SessionHost's
+        raise NotImplementedError
+
+    def _arm_task(self, motion: str, lock_name: str, fn: Callable[[], dict[str, Any]]) -> dict[str, Any]:
+        """``fn()`` while no session runs and nothing else moves the arm (ConflictError otherwise), holding
+        the station's lock; the arm is ``motion`` meanwhile."""
+        self._settle()
+        with self._lock:
+            if self._idle_robot("move it") is None:
+                raise NotAvailableError("this station has no robot to move ([robot] in the configuration)")
+            self._moving, self._motion = True, motion
+        try:
+            with station_lock(self.record.data_dir, lock_name):
+                return fn()
+        finally:
+            with self._lock:
+                self._moving = False
+
+    def rpc_jog(self, request: Mapping[str, Any]) -> dict[str, Any]:
+        """One jog (:func:`jog_arm`); JogError, SpeedCapError, StopLatchedError: nothing moved."""
+        return self._arm_task("being jogged", "jog", lambda: jog_arm(self.devices, request))
+
+    def rpc_teach(self, what: str, name: str | None) -> dict[str, Any]:
+        """Teach ``what`` into the station's configuration file (:func:`teach_on`); NotAvailableError when
+        the service has no configuration file to write (said once the arm is free and its stop not
+        latched: what to do first comes first)."""
+        path = self.spec.config
+        done = self._arm_task("being taught", "teach", lambda: teach_on(self.devices, path, what, name))
+        log.info("taught %s into %s (the old file is %s)", what, done["config"], done["backup"])
+        return done
