@@ -10,7 +10,7 @@ from fastapi import APIRouter, Depends, Request
 from pydantic import BaseModel
 
 from api._auth import Access, may_move, peer_is_local, read_access
-from api._deps import service_of
+from api._deps import Reads
 from api._openapi import problems
 from station.jog import JOG_SPEED_PCT
 from station.speed_cap import DEFAULT_MAX_SPEED_PCT, SPEED_CAP_SETTING
@@ -57,10 +57,10 @@ class SafetyModel(BaseModel):
     dependencies=[Depends(read_access)],
     responses=problems(401, 403),
 )
-async def safety(request: Request) -> SafetyModel:
+async def safety(request: Request, reads: Reads) -> SafetyModel:
     """Which safety rules are in force, from the station's configuration and the robot's latest read;
     never touches a device."""
-    station = service_of(request).station()
+    station = reads.station()
     config: dict[str, Any] = station.get("config") or {}
     robot_config: dict[str, Any] = config.get("robot") or {}
     rules: dict[str, Any] = robot_config.get("safety") or {}

@@ -243,6 +243,7 @@ def test_a_calibration_session_runs_through_the_sessions_resource(served: Served
         doc = r.json()
         assert doc["kind"] == "calibration"
         running = wait_state(c, doc["id"], {"running"})
-        assert running["progress"]["total"] == 2 * (1 + 4 * 4)  # 2 turns x the sim cell's 17 branches
+        # 2 turns x the sim cell's 17 branches, and the frames along its three rulers (RulerPlan's layout)
+        assert running["progress"]["total"] == 2 * (1 + 4 * 4) + 204
         assert c.post(f"/api/v1/sessions/{doc['id']}/actions", json={"action": "abort"}).status_code == 201
         assert wait_final(c, doc["id"])["state"] == "aborted"
