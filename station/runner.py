@@ -90,6 +90,7 @@ from station.plans import (
 from station.plans._gates import verdict
 from station.prompts import PromptError, PromptEvent
 from station.record import EventRow, Record, RecordError, SessionRow, station_lock
+from station.scale_preflight import ScalePreflight
 from station.vision import MeasurementError, MeasureParams, measure
 
 log = logging.getLogger(__name__)
@@ -277,6 +278,7 @@ class SessionRunner:
         self._run = 0  # how many times this session was resumed: captures of a resumed run carry it
         self.error: str | None = None
         self.results: dict[str, Any] | None = None
+        self._scale = ScalePreflight(devices, plan, self.measure_params, scale_calibration, self._event)
 
     # ------------------------------------------------------------------ observation
 
@@ -635,11 +637,14 @@ class SessionRunner:
         """A plan's live gates (``check_progress``): once the step is stored and measured, the plan may
         stop the session at once (``GateError``) when what it measured cannot be right."""
         check = getattr(self.plan, "check_progress", None)
-        if check is None:
+        if check is None and not self._scale.pending:
             return
         self._drain()
         self._check_store()
-        check(self.params, ctx, self._capture_results(sid))
+        captures = self._capture_results(sid)
+        self._scale.first_capture(captures)  # the scale check, when pre-flight did not see the crossing
+        if check is not None:
+            check(self.params, ctx, captures)
 
     def _connect(self, stack: contextlib.ExitStack) -> None:
         devices = self.devices
@@ -766,6 +771,8 @@ class SessionRunner:
                             table.check_target(action.x_mm, action.y_mm)
                         except MotionRejectedError as exc:
                             problems.append(f"{step.name}: {exc}")
+        if devices is not None:
+            problems += self._scale.before_motion()  # the camera model and distance against the groove
         if len(problems) > 20:
             problems = [*problems[:20], f"... and {len(problems) - 20} more"]
         with self._lock:
