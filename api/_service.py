@@ -53,6 +53,7 @@ from station.record import (
     station_lock,
 )
 from station.runner import ACTIVE_STATES, FINAL_STATES, Progress, RunnerState, reconcile
+from station.selftest_status import latest_selftest
 from station.session import open_record, station_measure_params
 from station.vision import field_names
 from station.worker import (
@@ -284,6 +285,7 @@ class StationService:
             "plans": list(KIND_NAMES),
             "worker": {"alive": self.worker.alive, "pid": self.worker.pid, "nice": info.nice},
             "robot": robot,
+            "selftest": None if robot is None else latest_selftest(self.record, devices["robot"]["identity"]),
         }
 
     # ------------------------------------------------------------------ measurement

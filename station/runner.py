@@ -76,6 +76,7 @@ from station.plans import (
     Capture,
     CaptureResult,
     Compute,
+    DeviceCheck,
     MoveJoints,
     MoveOffset,
     MoveTable,
@@ -91,6 +92,7 @@ from station.plans._gates import verdict
 from station.prompts import PromptError, PromptEvent
 from station.record import EventRow, Record, RecordError, SessionRow, station_lock
 from station.scale_preflight import ScalePreflight
+from station.selftest_status import attach_to_session, robot_identity
 from station.vision import MeasurementError, MeasureParams, measure
 
 log = logging.getLogger(__name__)
@@ -559,6 +561,7 @@ class SessionRunner:
         try:
             captures = self._capture_results(sid)
             self.results = self.plan.analyse(self.params, ctx, captures)
+            self.results = attach_to_session(self.results, self.record, sid, robot_identity(self.devices))
         except (PlanError, ValueError, RecordError) as exc:
             if not keep_going:
                 self.error = f"analysis failed: {exc}"
@@ -1189,6 +1192,7 @@ Handler = Callable[[SessionRunner, Step, Any, PlanContext], dict[str, Any]]
 
 _HANDLERS: dict[type, Handler] = {
     Compute: lambda runner, step, action, ctx: action.run(ctx),
+    DeviceCheck: lambda runner, step, action, ctx: action.run(runner._devices()),
     SetSpeed: lambda runner, step, action, ctx: runner._set_speed(action),
     MoveJoints: lambda runner, step, action, ctx: runner._move_joints(action),
     MoveOffset: lambda runner, step, action, ctx: runner._move_offset(action),
