@@ -46,12 +46,15 @@ from sim._render_features import vignetting_map
 from sim._table import TableAxis, TableImperfections
 from sim._world_geometry import center_mm_of, euler_xyz, on_artifact
 from sim._world_rulers import render_ruler_view
+from sim._world_target import render_table_target
 from sim.arm_errors import FlangeErrors, FlangeErrorSequence
 from sim.artifact import ArtifactSpec, CameraSpec, Pose, Truth, homography_for, render
 from sim.cell_rulers import DEFAULT_RULERS, RulerMount, on_substrate, ray_hit, seen_ruler
 from sim.kinematic_errors import perturbed_dh
+from sim.lens import nominal_intrinsics, true_intrinsics
 from sim.presets import NoisePreset, get_preset
 from sim.ruler import RulerTruth
+from sim.target import TargetTruth
 from station.kinematics import DHRow, Kinematics, rot_x, rot_z, transform
 
 FloatArray = npt.NDArray[np.float64]
@@ -109,6 +112,12 @@ class WorldSpec:
     trusting its nominal camera, does not know."""
     magnification_range: float = 0.02
     """Half-width of the seeded magnification error (relative)."""
+    calibration_target: bool = False
+    """The camera-calibration target on the X-Y table in place of the artifact (``sim._world_target``)."""
+    true_intrinsics_seed: int | None = None
+    """None: the target is seen through the true camera's pinhole (:attr:`World.true_camera`); a seed:
+    through ``sim.lens.true_intrinsics(seed)`` (focal +/-2 %, principal point +/-20 px, radial
+    distortion), which a camera calibration must find. The artifact's renderer stays a pinhole."""
 
 
 def magnification_error(seed: int, magnification_range: float = 0.02) -> float:
@@ -177,6 +186,13 @@ class World:
         )
         """The camera as it really is (its focal length; the focal plane stays at the working distance):
         what the world renders with. The station is told ``spec.camera``."""
+        lens, camera = self.spec.true_intrinsics_seed, self.spec.camera
+        self.true_intrinsics = (
+            nominal_intrinsics(self.true_camera) if lens is None else true_intrinsics(lens, camera)
+        )
+        """The camera's true intrinsics the calibration target is rendered with: truth."""
+        self.last_target: TargetTruth | None = None
+        """The calibration target's truth in the last frame rendered (None: no target in it): truth."""
         res_mm = self.spec.table.resolution_in * INCH_MM
         self._x = TableAxis(res_mm, self.spec.table.backlash_mm)
         self._y = TableAxis(res_mm, self.spec.table.backlash_mm)
@@ -414,7 +430,10 @@ class World:
                     self._last_frame_homography = None
                     self._last_ruler = (r, seen_r[1])
                 return seen_r[0], None
-        seen = np.linalg.inv(cam) @ self.artifact_poses()[self.seen_artifact(cam)]
+        index = self.seen_artifact(cam)
+        if index == 0 and self.spec.calibration_target:
+            return self._render_target(cam, rng, exposure), None
+        seen = np.linalg.inv(cam) @ self.artifact_poses()[index]
         view = self._view(seen)
         if view is None:
             with self._lock:
@@ -435,6 +454,18 @@ class World:
             self._last_frame_homography = np.array(truth.homography)
             self._last_ruler = None
         return image, truth
+
+    def _render_target(
+        self, cam: FloatArray, rng: np.random.Generator, exposure: float
+    ) -> npt.NDArray[np.uint8]:
+        """A frame of the calibration target on the table (the background where it is not in view)."""
+        seen = render_table_target(
+            cam, self.table_artifact_pose(), self.spec, self.true_intrinsics, rng, exposure
+        )
+        with self._lock:
+            self._last_frame_homography, self._last_ruler = None, None
+            self.last_target = None if seen is None else seen[1]
+        return self._background(rng, exposure) if seen is None else seen[0]
 
     def _view(self, artifact_in_camera: FloatArray) -> tuple[Pose, npt.NDArray[np.bool_] | None] | None:
         """The renderer's pose of an artifact (4x4 in the camera frame) and the pixels outside its plate
