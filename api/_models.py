@@ -204,3 +204,6 @@ class StationModel(BaseModel):
     """The robot's state and pose, read between sessions (``state``: ``reading``, ``idle``,
     ``in_session`` or ``unreachable``; ``power``, ``homed``, ``joints_deg``, ``commanded_joints_deg``,
     ``reference_joints_deg``, ``at_reference``, ``read_at``, ``error``); None without a robot."""
+    selftest: dict[str, Any] | None = None
+    """The latest controller self-test of this robot (``station run selftest``): ``session_id``, ``passed``,
+    ``when``; None without a robot or before its first self-test (``station.selftest_status``)."""

@@ -23,6 +23,7 @@ from api._settings import ServiceSettings
 from station.kinds import KIND_NAMES
 from station.record import EventRow, Record, RecordUnavailableError, SessionRow, lock_holder
 from station.runner import ACTIVE_STATES, FINAL_STATES, Progress
+from station.selftest_status import latest_selftest
 from station.worker import RunnerStatus, WorkerClient
 
 CACHE_MAX_AGE_S = 1.0
@@ -189,6 +190,7 @@ class SessionReads:
             "plans": list(KIND_NAMES),
             "worker": {"alive": worker.alive, "pid": worker.pid, "nice": info.nice},
             "robot": robot,
+            "selftest": None if robot is None else latest_selftest(self.record, devices["robot"]["identity"]),
         }
 
     # ------------------------------------------------------------------ sessions

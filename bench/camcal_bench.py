@@ -40,8 +40,8 @@ from sim.target import (
     WORLD_DEFOCUS_PX_PER_MM,
     TargetPose,
     render_target,
-    sensor_distance,
 )
+from sim.target_sensor import sensor_distance
 from station.camcal import (
     CameraCalibrationError,
     FitOptions,

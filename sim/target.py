@@ -33,7 +33,6 @@ import numpy.typing as npt
 from sim._render_camera import F4_DEFOCUS_PX_PER_MM
 from sim._render_features import vignetting_map
 from sim._render_geometry import Float32Array, FloatArray, box_step, cutoff_px
-from sim.distance_sensor import HeadModel, beam_hit
 from sim.presets import NoisePreset, get_preset
 from station.camcal import STANDARD_TARGET, CharucoTarget, ViewSpec
 from station.camera_model import CameraIntrinsics
@@ -44,7 +43,6 @@ __all__ = [
     "TargetPose",
     "TargetTruth",
     "render_target",
-    "sensor_distance",
     "sensor_readout",
 ]
 
@@ -298,30 +296,6 @@ def render_target(
     clean *= vignetting_map(shape, p.vignetting)
     image = sensor_readout(clean, p, rng)
     return image, _truth(target, pose, intrinsics, focus_mm, p.blur_sigma_px, defocus_px_per_mm)
-
-
-def sensor_distance(
-    pose: TargetPose,
-    mount: npt.ArrayLike,
-    *,
-    rng: np.random.Generator,
-    head: HeadModel = HeadModel(),  # noqa: B008 - frozen model, immutable
-    samples: int = 10,
-) -> float:
-    """What the distance sensor beside the camera reads of the plane the target lies in, mm (averaged).
-
-    ``mount``: the head's 4x4 pose in the camera frame; the plane is the target's (the table it lies on,
-    parallel to it). Each sample is the true distance along the beam plus the head's repeatability noise,
-    shown at its resolution, as ``sim.distance_sensor`` answers; ``samples`` of them are averaged.
-    """
-    plane = np.eye(4)
-    plane[:3, :3], plane[:3, 3] = pose.rotation, pose.translation_mm
-    hit = beam_hit(np.asarray(mount, dtype=np.float64), plane)
-    if hit.distance_mm is None:
-        raise ValueError("the sensor's beam does not meet the target's plane")
-    noisy = hit.distance_mm + rng.normal(0.0, head.repeatability_mm, samples)
-    shown = np.round(noisy / head.resolution_mm) * head.resolution_mm
-    return float(np.mean(shown))
 
 
 def _truth(

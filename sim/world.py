@@ -35,90 +35,40 @@ from __future__ import annotations
 import math
 import threading
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
-from typing import Any, Literal
+from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from sim._render_camera import F4_DEFOCUS_PX_PER_MM
 from sim._render_features import vignetting_map
 from sim._table import TableAxis, TableImperfections
 from sim._world_geometry import center_mm_of, euler_xyz, on_artifact
 from sim._world_rulers import render_ruler_view, table_ruler_frame
-from sim.arm_errors import FlangeErrors, FlangeErrorSequence
-from sim.artifact import ArtifactSpec, CameraSpec, Pose, Truth, homography_for, render
-from sim.cell_rulers import DEFAULT_RULERS, RulerMount, on_substrate, ray_hit, seen_ruler
+from sim._world_spec import REFERENCE_JOINTS_DEG, WorldSpec, magnification_error
+from sim._world_target import render_table_target
+from sim.arm_errors import FlangeErrorSequence
+from sim.artifact import Pose, Truth, homography_for, render
+from sim.cell_rulers import on_substrate, ray_hit, seen_ruler
 from sim.kinematic_errors import perturbed_dh
+from sim.lens import nominal_intrinsics, true_intrinsics
 from sim.presets import NoisePreset, get_preset
 from sim.ruler import RulerTruth
+from sim.target import TargetTruth
 from station.kinematics import DHRow, Kinematics, rot_x, rot_z, transform
+
+__all__ = [
+    "INCH_MM",
+    "REFERENCE_JOINTS_DEG",
+    "TableImperfections",
+    "World",
+    "WorldSpec",
+    "euler_xyz",
+    "magnification_error",
+]
 
 FloatArray = npt.NDArray[np.float64]
 INCH_MM = 25.4
-
-#: A reference pose of the arm with the camera looking straight down (flange z along -z of the base).
-REFERENCE_JOINTS_DEG: tuple[float, ...] = (0.0, 30.0, 60.0, 0.0, 90.0, 0.0)
-
-
-@dataclass(frozen=True)
-class WorldSpec:
-    """Everything that fixes a simulated station (see the module docstring for frames and signs)."""
-
-    camera: CameraSpec = field(default_factory=CameraSpec)
-    artifact: ArtifactSpec = field(default_factory=ArtifactSpec)
-    preset: str = "nominal"
-    tool_length_mm: float = 120.0
-    reference_joints_deg: tuple[float, ...] = REFERENCE_JOINTS_DEG
-    table_rotation_deg: float = 0.3
-    artifact_rotation_deg: float = 2.0
-    table: TableImperfections = field(default_factory=TableImperfections)
-    defocus_px_per_mm: float = F4_DEFOCUS_PX_PER_MM
-    """The blur's growth away from the focal plane, px (sigma) per mm: the seed's 1X macro lens at f/4
-    (``sim._render_camera.F4_DEFOCUS_PX_PER_MM``; 20 before issue 22, an f/0.6 lens)."""
-    flange_errors: FlangeErrors = field(default_factory=FlangeErrors)
-    bench_artifacts: tuple[tuple[float, float, float, float, float], ...] = (
-        (350.0, 250.0, 380.0, 30.0, 20.0),
-        (420.0, -200.0, 340.0, -20.0, -20.0),
-        (0.0, -400.0, 400.0, 60.0, -25.0),
-        (-100.0, 380.0, 420.0, -45.0, 20.0),
-    )
-    """Further artifacts fixed on the bench (not on the table), for calibration: each ``(x, y, z, yaw_deg,
-    tilt_deg)`` in the base frame: the crossing's position (mm), the turn of its u axis about base z from
-    the base's x, and a tilt of the plate about its u axis (an angle block), on blocks above the table's
-    plane (the arm's keep-out). The camera sees the artifact nearest its optical axis. The defaults
-    spread four around the arm, tilted so that the camera square to them needs the wrist bent sideways
-    (joint 4 away from 0 and 180 deg): four joint solutions each within the limits."""
-    true_dh: tuple[DHRow, ...] | None = None
-    """The arm's true DH table; None: the nominal table plus errors drawn with ``dh_error_seed``."""
-    dh_error_seed: int = 0
-    artifact_half_size_mm: float = 50.0
-    """Half the side of each artifact's top plate (its grooves run across it): the camera sees the
-    background beyond it, and the distance sensor twin's beam misses it there (the sensor, 30 mm beside
-    the optical axis, reads the plate while the camera looks at the crossing)."""
-    background_dn: float = 60.0
-    """Grey level of what lies around the artifacts (bench, table top; far out of focus), DN."""
-    rulers: tuple[RulerMount, ...] = DEFAULT_RULERS
-    """The rulers fixed in the cell (``sim.cell_rulers``): two on the table's plane, one on an angle block,
-    on the side of the cell opposite the X-Y table. The camera sees a ruler when its optical axis meets
-    the ruler's glass."""
-    table_artifact: Literal["cross", "ruler"] = "cross"
-    """What the X-Y table carries: the crossed artifact, or a ruler in its place (``sim._world_rulers``:
-    its middle where the crossing would be, ``s`` along the artifact's u) for a validation with the ruler."""
-    magnification_seed: int | None = None
-    """None: the camera's true magnification is its nominal (``camera.px_per_mm``); a seed: the true
-    focal length (and so the scale at the focal plane) differs from the nominal by a factor drawn
-    uniformly within ``1 +/- magnification_range`` (:func:`magnification_error`), which the station,
-    trusting its nominal camera, does not know."""
-    magnification_range: float = 0.02
-    """Half-width of the seeded magnification error (relative)."""
-
-
-def magnification_error(seed: int, magnification_range: float = 0.02) -> float:
-    """The camera's true magnification over its nominal, minus 1, for ``WorldSpec.magnification_seed``."""
-    if not (0.0 <= magnification_range < 0.5):
-        raise ValueError(f"magnification_range must be in [0, 0.5), got {magnification_range!r}")
-    return float(np.random.default_rng([0x3A6, seed]).uniform(-magnification_range, magnification_range))
 
 
 class World:
@@ -180,6 +130,13 @@ class World:
         )
         """The camera as it really is (its focal length; the focal plane stays at the working distance):
         what the world renders with. The station is told ``spec.camera``."""
+        lens, camera = self.spec.true_intrinsics_seed, self.spec.camera
+        self.true_intrinsics = (
+            nominal_intrinsics(self.true_camera) if lens is None else true_intrinsics(lens, camera)
+        )
+        """The camera's true intrinsics the calibration target is rendered with: truth."""
+        self.last_target: TargetTruth | None = None
+        """The calibration target's truth in the last frame rendered (None: no target in it): truth."""
         res_mm = self.spec.table.resolution_in * INCH_MM
         self._x = TableAxis(res_mm, self.spec.table.backlash_mm)
         self._y = TableAxis(res_mm, self.spec.table.backlash_mm)
@@ -426,7 +383,10 @@ class World:
                     self._last_frame_homography = None
                     self._last_ruler = (r, seen_r[1])
                 return seen_r[0], None
-        seen = np.linalg.inv(cam) @ self.artifact_poses()[self.seen_artifact(cam)]
+        index = self.seen_artifact(cam)
+        if index == 0 and self.spec.calibration_target:
+            return self._render_target(cam, rng, exposure), None
+        seen = np.linalg.inv(cam) @ self.artifact_poses()[index]
         view = self._view(seen)
         if view is None:
             with self._lock:
@@ -447,6 +407,18 @@ class World:
             self._last_frame_homography = np.array(truth.homography)
             self._last_ruler = None
         return image, truth
+
+    def _render_target(
+        self, cam: FloatArray, rng: np.random.Generator, exposure: float
+    ) -> npt.NDArray[np.uint8]:
+        """A frame of the calibration target on the table (the background where it is not in view)."""
+        seen = render_table_target(
+            cam, self.table_artifact_pose(), self.spec, self.true_intrinsics, rng, exposure
+        )
+        with self._lock:
+            self._last_frame_homography, self._last_ruler = None, None
+            self.last_target = None if seen is None else seen[1]
+        return self._background(rng, exposure) if seen is None else seen[0]
 
     def _view(self, artifact_in_camera: FloatArray) -> tuple[Pose, npt.NDArray[np.bool_] | None] | None:
         """The renderer's pose of an artifact (4x4 in the camera frame) and the pixels outside its plate

@@ -13,7 +13,7 @@ import json
 from collections.abc import Mapping
 from typing import Any
 
-from station.kinds import calibration, reanalyse, repeatability, sweep, validation
+from station.kinds import calibration, reanalyse, repeatability, selftest, sweep, validation
 from station.plans import Plan, PlanError
 from station.plans._kind import Kind
 from station.plans._present import checks_summary
@@ -26,6 +26,7 @@ KINDS: Mapping[str, Kind] = {
         sweep.KIND,
         reanalyse.KIND,
         calibration.KIND,
+        selftest.KIND,
     )
 }
 KIND_NAMES: tuple[str, ...] = tuple(KINDS)

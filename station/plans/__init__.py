@@ -94,6 +94,16 @@ class Compute:
 
 
 @dataclass(frozen=True)
+class DeviceCheck:
+    """Run ``run(devices)`` on the station's connected devices (``StationDevices``): a procedure that
+    drives them itself, as the controller self-test does (each of its moves checked by the robot); the
+    JSON-ready dict it returns is stored as the step's data."""
+
+    run: Callable[[Any], dict[str, Any]]
+    label: str = ""
+
+
+@dataclass(frozen=True)
 class MoveOffset:
     """Move the arm to the pose the last :class:`Align` reached plus ``offset_deg`` (six joint deltas).
 
@@ -151,7 +161,7 @@ class Align:
     settle_s: float = 0.25
 
 
-Action = MoveJoints | MoveTable | SetSpeed | Settle | Capture | Compute | Align | MoveOffset
+Action = MoveJoints | MoveTable | SetSpeed | Settle | Capture | Compute | Align | MoveOffset | DeviceCheck
 
 
 @dataclass(frozen=True)
@@ -280,6 +290,7 @@ __all__ = [
     "CaptureResult",
     "Compute",
     "Correction",
+    "DeviceCheck",
     "MoveJoints",
     "MoveOffset",
     "MoveTable",

@@ -26,6 +26,7 @@ from station.plans import (
     AlignSkippedError,
     Capture,
     Compute,
+    DeviceCheck,
     MoveJoints,
     MoveOffset,
     MoveTable,
@@ -96,6 +97,9 @@ class ActionExecutor:
 
     def compute(self, action: Compute) -> dict[str, Any]:
         return action.run(self.ctx)
+
+    def device_check(self, action: DeviceCheck) -> dict[str, Any]:
+        return action.run(self._devices())
 
     def set_speed(self, action: SetSpeed) -> dict[str, Any]:
         require(self._devices().robot, "robot").set_speed(action.percent)
@@ -236,6 +240,7 @@ Handler = Callable[[ActionExecutor, Any], dict[str, Any]]
 
 HANDLERS: dict[type, Handler] = {
     Compute: ActionExecutor.compute,
+    DeviceCheck: ActionExecutor.device_check,
     SetSpeed: ActionExecutor.set_speed,
     MoveJoints: ActionExecutor.move_joints,
     MoveOffset: ActionExecutor.move_offset,

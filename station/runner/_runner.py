@@ -37,6 +37,8 @@ from station.runner._states import (
     StopRequestedError,
 )
 from station.runner._store import StepRun, StorePipeline
+from station.scale_preflight import ScalePreflight
+from station.selftest_status import attach_to_session, robot_identity
 from station.vision import MeasureParams
 
 log = logging.getLogger("station.runner")
@@ -108,6 +110,7 @@ class SessionRunner:
         )
         self.error: str | None = None
         self.results: dict[str, Any] | None = None
+        self._scale = ScalePreflight(devices, plan, self.measure_params, scale_calibration, self.journal.emit)
 
     # ------------------------------------------------------------------ observation
 
@@ -309,6 +312,10 @@ class SessionRunner:
         self.results = done.results
         if done.error is not None:
             self.error = done.error
+        elif self.results is not None:
+            assert ctx.session_id is not None
+            identity = robot_identity(self.devices)
+            self.results = attach_to_session(self.results, self.record, ctx.session_id, identity)
 
     # ------------------------------------------------------------------ steps
 
@@ -326,14 +333,19 @@ class SessionRunner:
         """A plan's live gates (``check_progress``): once the step is stored and measured, the plan may
         stop the session at once (``GateError``) when what it measured cannot be right."""
         check = getattr(self.plan, "check_progress", None)
-        if check is None:
+        if check is None and not self._scale.pending:
             return
         self.store.drain()
         self.store.check()
-        check(self.params, ctx, captures_of(self.plan, self.params, self.record, sid))
+        captures = captures_of(self.plan, self.params, self.record, sid)
+        self._scale.first_capture(captures)  # the scale check, when pre-flight did not see the crossing
+        if check is not None:
+            check(self.params, ctx, captures)
 
     def _preflight(self, steps: list[Step], found: list[str]) -> None:
         """Every problem at once, before anything moves (``station.runner._preflight``)."""
+        if self.devices is not None:
+            found = [*found, *self._scale.before_motion()]  # the camera model and distance against the groove
         problems = find_problems(steps, self.devices, found)
         planned = self.counter.total
         # ``steps``: every step checked (the route and a resume's prelude included); ``plan_steps``: the

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from sim.lens import nominal_intrinsics, true_intrinsics
-from sim.target import F4_DEFOCUS_PX_PER_MM, TargetPose, render_target, sensor_distance
+from sim.target import F4_DEFOCUS_PX_PER_MM, TargetPose, render_target
+from sim.target_sensor import sensor_distance
 from station.camcal import (
     CalibrationFitError,
     FitOptions,

@@ -11,7 +11,8 @@ import pytest
 from sim.artifact import CameraSpec
 from sim.lens import nominal_intrinsics, true_intrinsics
 from sim.presets import get_preset
-from sim.target import TargetPose, render_target, sensor_distance
+from sim.target import TargetPose, render_target
+from sim.target_sensor import sensor_distance
 from station.camcal import STANDARD_TARGET, ViewSpec
 from station.camera_model import CameraIntrinsics
 

@@ -54,6 +54,12 @@ export function showRobot(s) {
   $("robot-pose").textContent = r.commanded_joints_deg
     ? `${before}joints ${joints(r.joints_deg)}°${read}; reference ${joints(r.reference_joints_deg)}°`
     : "";
+  // the latest controller self-test of this robot (a selftest session), until its identity changes
+  const t = s.selftest;
+  section.dataset.selftest = t ? String(t.passed) : "missing";
+  $("robot-selftest").textContent = t
+    ? `self-test ${t.passed ? "passed" : "NOT passed: see its session, then run it again"} (session ${t.session_id}${t.when ? `, ${new Date(t.when).toLocaleString()}` : ""})`
+    : "no self-test of this controller yet: run one (kind selftest, or station run selftest)";
   updateRobotControls();
 }
 

@@ -115,6 +115,9 @@ class ValidationPlan:
     name = "validation"
     Params = ValidationParams
     needs = frozenset({"camera", "table"})
+    #: the session that measures the artifact's width: the pre-flight scale check only warns
+    #: (``station.scale_preflight``), its groove-width gate judges the width
+    scale_check = "warn"
 
     def steps(self, params: ValidationParams, ctx: PlanContext) -> Iterator[Step]:
         ox, oy = params.origin_mm
