@@ -39,9 +39,11 @@ layers: setup
 	$(BIN)/python tools/check_layers.py
 
 # The GigE simulator's tests and the Dask cluster's (a scheduler and workers started on localhost) run
-# apart from the rest: both suffer when the machine is loaded by the parallel run.
+# apart from the rest: both suffer when the machine is loaded by the parallel run. `--dist loadfile` keeps
+# a test file on one worker, so that its module fixtures (a simulated calibration session, shared
+# services, rendered image sets) are built once, not once per worker that happens to run one of its tests.
 pytest: setup
-	$(BIN)/python -m pytest -n 2 -q -m "not gige and not cluster"
+	$(BIN)/python -m pytest -n 2 --dist loadfile -q -m "not gige and not cluster"
 	$(BIN)/python -m pytest -q -m gige
 	$(BIN)/python -m pytest -q -m cluster
 

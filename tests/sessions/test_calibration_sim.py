@@ -1,7 +1,8 @@
 """A calibration session on the simulated station, end to end, judged against the world's truth.
 
 The small configuration, built once for the module: the five artifacts of the sim cell, three camera
-turns, every joint solution (51 planned configurations; about 130 s). Fewer leave the fit short of data:
+turns, every joint solution (51 planned configurations; about 50-75 s on a loaded 2-core machine, on a twin
+running 1000x faster than real). Fewer leave the fit short of data:
 two turns gave 35 um after calibration against a 14 um floor, two solutions 40 um against 14, and three
 solutions, enough before the cell gained its rulers and the f/4 defocus (17 against 12 um), 33 um against
 an 11 um floor after. The issue's targets on it: the relative error with the calibrated model at least
@@ -15,8 +16,7 @@ from __future__ import annotations
 
 import json
 import statistics
-import subprocess
-import sys
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -24,30 +24,47 @@ import pytest
 
 from sim.calibration_truth import truth_report
 from station.calibration import CalibrationResult, load_kinematics
+from station.cli import main
 from station.kinds.calibration.params import calibration_cell_from_config
 from station.runner import stored_captures
 from station.session import SessionOutcome, open_record, run_session
 from station.vision import MeasureParams
 
 
-def calibrate(data: Path, *args: str) -> subprocess.CompletedProcess[str]:
-    """``station calibrate ARGS --data DATA`` in a process of its own."""
-    return subprocess.run(
-        [sys.executable, "-m", "station.cli", "calibrate", *args, "--data", str(data)],
-        capture_output=True,
-        text=True,
-        timeout=240,
-    )
+@dataclass(frozen=True)
+class Ran:
+    """A command's exit code and what it printed."""
+
+    returncode: int
+    stdout: str
+    stderr: str
 
 
-# crossings only: the sim cell has rulers (issue 22), which tests/sessions/test_calibration_rulers.py takes
-SMALL = {"turns_deg": [-20.0, 70.0, 160.0], "settle_s": 0.05, "rulers": []}
+def calibrate(capsys: pytest.CaptureFixture[str], data: Path, *args: str) -> Ran:
+    """``station calibrate ARGS --data DATA``: the CLI's ``main`` in this process (the test process has
+    imported the station already; a process of its own spent about 16 s under load importing it again)."""
+    capsys.readouterr()  # what was printed before is not this command's
+    try:
+        code = main(["calibrate", *args, "--data", str(data)])
+    except SystemExit as exc:  # argparse's usage errors
+        code = exc.code if isinstance(exc.code, int) else 2
+    out, err = capsys.readouterr()
+    return Ran(code, out, err)
+
+
+# crossings only: the sim cell has rulers (issue 22), which tests/sessions/test_calibration_rulers.py takes.
+# The host's settling pause is ten times the twin's servo decay (``settle_time_s``, 0.05 model s, run
+# 1000x faster than real: 0.05 ms), so every capture still sees a settled arm.
+SMALL = {"turns_deg": [-20.0, 70.0, 160.0], "settle_s": 0.005, "rulers": []}
+#: The twin's clock: motions and settling 1000x faster than real (the simulated station's default is
+#: 100x); the same moves, errors and captures, without the host polling a motion that has long ended.
+SIM = {"time_scale": 1000.0}
 
 
 @pytest.fixture(scope="module")
 def session(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, SessionOutcome]:
     data = tmp_path_factory.mktemp("calibration")
-    outcome = run_session("calibration", sim=True, params=SMALL, data=data)
+    outcome = run_session("calibration", sim=SIM, params=SMALL, data=data)
     return data, outcome
 
 
@@ -92,11 +109,11 @@ def test_calibration_meets_its_targets_against_the_truth(session: tuple[Path, Se
 
 @pytest.mark.timeout(300)
 def test_station_calibrate_identifies_the_stored_session_again(
-    session: tuple[Path, SessionOutcome], tmp_path: Path
+    session: tuple[Path, SessionOutcome], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     data, outcome = session
     out = tmp_path / "cal.json"
-    proc = calibrate(data, outcome.id, "--json", "--out", str(out))
+    proc = calibrate(capsys, data, outcome.id, "--json", "--out", str(out))
     assert proc.returncode == 0, proc.stderr
     again: dict[str, Any] = json.loads(proc.stdout.strip().splitlines()[-1])
     assert again["id"] == outcome.id
@@ -109,19 +126,19 @@ def test_station_calibrate_identifies_the_stored_session_again(
     assert [r.a_mm for r in kin.dh] == pytest.approx([r.a_mm for r in saved.kinematics().dh])
     assert saved.identified_count == outcome.results["identified_count"]
     # another hold-out draw: another split, figures of the same size
-    proc = calibrate(data, outcome.id, "--json", "--param", "seed=5")
+    proc = calibrate(capsys, data, outcome.id, "--json", "--param", "seed=5")
     assert proc.returncode == 0, proc.stderr
     other = json.loads(proc.stdout.strip().splitlines()[-1])["results"]
     assert other["held_out_configurations"] != outcome.results["held_out_configurations"]
     assert other["relative_error_um"]["after"] * 10 <= other["relative_error_um"]["before"]
     # a robust loss on the same data: recorded with the fit, and on clean captures no worse than least
     # squares (within a tenth)
-    proc = calibrate(data, outcome.id, "--json", "--param", "loss=soft_l1")
+    proc = calibrate(capsys, data, outcome.id, "--json", "--param", "loss=soft_l1")
     assert proc.returncode == 0, proc.stderr
     robust = json.loads(proc.stdout.strip().splitlines()[-1])["results"]
     assert robust["calibration"]["fit"]["loss"] == "soft_l1"
     assert robust["relative_error_um"]["after"] <= 1.1 * rel0["after"]
-    proc = calibrate(data, outcome.id, "--param", "loss=tukey")
+    proc = calibrate(capsys, data, outcome.id, "--param", "loss=tukey")
     assert proc.returncode == 2
     assert "soft_l1" in proc.stderr
 
@@ -147,13 +164,15 @@ def test_a_reanalysis_measures_the_captures_again_and_identifies_as_the_session_
     }
 
 
-def test_station_calibrate_refuses_what_it_cannot_identify(session: tuple[Path, SessionOutcome]) -> None:
+def test_station_calibrate_refuses_what_it_cannot_identify(
+    session: tuple[Path, SessionOutcome], capsys: pytest.CaptureFixture[str]
+) -> None:
     data, outcome = session
 
-    proc = calibrate(data, "nosuchsession")
+    proc = calibrate(capsys, data, "nosuchsession")
     assert proc.returncode == 2
     assert "nosuchsession" in proc.stderr
-    proc = calibrate(data, outcome.id, "--param", "turns_deg=[0]")
+    proc = calibrate(capsys, data, outcome.id, "--param", "turns_deg=[0]")
     assert proc.returncode == 2
     assert "only the analysis's parameters can change" in proc.stderr
 

@@ -24,12 +24,22 @@ FINAL = ("succeeded", "failed", "aborted", "stopped", "interrupted")
 PATTERN = [[0.0, 0.0], [254.0, 0.0], [254.0, 254.0], [0.0, 254.0]]
 
 
-@pytest.fixture
-def browser() -> Iterator[Any]:
-    """Chromium for one test (Playwright's sync API runs one instance at a time per process, and
-    ``tests/api/test_browser.py`` has its own)."""
+@pytest.fixture(scope="module")
+def chromium_process() -> Iterator[Any]:
+    """One Chromium for a module's tests (Playwright's sync API runs one instance at a time per process:
+    a module's is closed before the next module's, or ``tests/api/test_browser.py``'s, starts)."""
     with chromium() as b:
         yield b
+
+
+@pytest.fixture
+def browser(chromium_process: Any) -> Iterator[Any]:
+    """Chromium for one test: the module's process, every browser context the test opened closed after
+    it (a context is a fresh profile: cookies, storage and cache of its own), so that no page of one test
+    still polls while the next runs."""
+    yield chromium_process
+    for context in list(chromium_process.contexts):
+        context.close()
 
 
 @dataclass
