@@ -47,9 +47,6 @@ class SessionState(enum.StrEnum):
     INTERRUPTED = "interrupted"
 
 
-RunnerState = SessionState
-"""The former name, kept for code written before the rename (the other branches' tests import it)."""
-
 FINAL_STATES = frozenset(
     {
         SessionState.STOPPED,

@@ -76,7 +76,7 @@ def break_the_runner(host: SessionHost) -> None:
     """In the station's worker: the next session's run raises what no runner handles (a bug)."""
     from station import runner
 
-    def broken(self: runner.SessionRunner) -> runner.RunnerState:
+    def broken(self: runner.SessionRunner) -> runner.SessionState:
         raise RuntimeError("a bug in the station worker")
 
     runner.SessionRunner.run = broken  # type: ignore[method-assign]

@@ -20,7 +20,7 @@ from api import Access, ServiceSettings, StationService
 from station.kinds import get_plan
 from station.plans import parse_params
 from station.record import Record
-from station.runner import RunnerState, SessionRunner
+from station.runner import SessionRunner, SessionState
 from station.testing import FakeStation
 from tests.api.conftest import FINAL, TOKEN, Served, ServeFactory, serve
 from tests.record.conftest import PostgresServer, postgres  # noqa: F401 - the server fixture
@@ -44,7 +44,7 @@ def export_zip(tmp_path_factory: pytest.TempPathFactory) -> tuple[bytes, str]:
             parse_params(plan, {"pattern_um": [[0, 0], [254, 0], [0, 254]]}),
             devices=FakeStation().devices(),
         )
-        assert runner.run() is RunnerState.SUCCEEDED, runner.error
+        assert runner.run() is SessionState.SUCCEEDED, runner.error
         assert runner.session_id is not None
         folder = rec.export_session(runner.session_id, root / "out")
     buf = io.BytesIO()

@@ -59,13 +59,13 @@ def recorded(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
     """A data directory with one validation session (on the in-process fakes), closed."""
     from station.kinds import get_plan
     from station.plans import parse_params
-    from station.runner import RunnerState, SessionRunner
+    from station.runner import SessionRunner, SessionState
 
     data = tmp_path_factory.mktemp("recorded") / "data"
     with Record(data) as rec:
         plan = get_plan("validation")
         params = parse_params(plan, {"pattern_um": [[0, 0], [254, 0], [0, 254]]})
         runner = SessionRunner(rec, plan, params, devices=FakeStation().devices())
-        assert runner.run() is RunnerState.SUCCEEDED, runner.error
+        assert runner.run() is SessionState.SUCCEEDED, runner.error
         assert runner.session_id is not None
         return data, runner.session_id

@@ -32,7 +32,7 @@ from station.plans import (
     Step,
 )
 from station.record import Record
-from station.runner import RunnerState, SessionRunner
+from station.runner import SessionRunner, SessionState
 from station.testing import FakeDistanceSensor, FakeRobot, FakeStation
 from station.vision import MeasureParams
 
@@ -216,7 +216,7 @@ def test_align_measures_moves_within_bounds_and_offsets_start_from_the_aligned_p
     corrected = (1.2, 30.1, 60.0, 0.0, 90.0, 0.0)
     runner, fake, plan, record = run_align(tmp_path, corrections=[list(corrected)])
     with record:
-        assert runner.state is RunnerState.SUCCEEDED, runner.error
+        assert runner.state is SessionState.SUCCEEDED, runner.error
         moves = [c[0] for c in fake.robot.calls_of("move_joints")]
         # the planned move, the correction, then the in-view offset from the corrected pose
         assert moves[1] == corrected
@@ -236,7 +236,7 @@ def test_align_measures_moves_within_bounds_and_offsets_start_from_the_aligned_p
 def test_a_correction_beyond_its_bounds_is_refused_and_the_step_skipped(tmp_path: Path) -> None:
     runner, fake, _, record = run_align(tmp_path, corrections=[[4.0, 30.0, 60.0, 0.0, 90.0, 0.0]])
     with record:
-        assert runner.state is RunnerState.SUCCEEDED, runner.error
+        assert runner.state is SessionState.SUCCEEDED, runner.error
         moves = [c[0] for c in fake.robot.calls_of("move_joints")]
         assert moves == [(1.0, 30.0, 60.0, 0.0, 90.0, 0.0)]  # only the planned move: nothing beyond bounds
         step = record.steps(runner.session_id or "")[0]
@@ -257,6 +257,6 @@ def test_a_correction_that_fails_validation_is_not_sent(tmp_path: Path) -> None:
         tmp_path, FakeRobot(limits_deg=limits), corrections=[[1.0, 30.0, 61.5, 0.0, 90.0, 0.0]]
     )
     with record:
-        assert runner.state is RunnerState.FAILED
+        assert runner.state is SessionState.FAILED
         assert "joint 3 target 61.5 deg is outside" in (runner.error or "")
         assert [c[0] for c in fake.robot.calls_of("move_joints")] == [(1.0, 30.0, 60.0, 0.0, 90.0, 0.0)]

@@ -11,7 +11,7 @@ import pytest
 
 from station.cli import main
 from station.record import Record, RecordError
-from station.runner import FINAL_STATES, RunnerState
+from station.runner import FINAL_STATES, SessionState
 
 SECRET = "hunter2-Zq9"
 
@@ -72,7 +72,7 @@ def test_a_record_failing_at_the_end_of_a_session_still_gives_the_outcome_object
     assert set(doc) == {"id", "kind", "state", "results", "error"}
     monkeypatch.undo()
     with Record(data) as rec:
-        assert rec.get_session(doc["id"]).state == RunnerState.RUNNING  # the record could not say more
+        assert rec.get_session(doc["id"]).state == SessionState.RUNNING  # the record could not say more
     assert "Traceback" not in err
 
 

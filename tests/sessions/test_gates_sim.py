@@ -35,7 +35,7 @@ from station.kinds.validation.gates import NOT_SEEN, SETUP_MOVED
 from station.plans import parse_params
 from station.prompts import Prompt
 from station.record import Record
-from station.runner import RunnerState, SessionRunner
+from station.runner import SessionRunner, SessionState
 from station.session import run_session
 from station.vision import MeasurementError, MeasureParams, measure
 from tests.sessions.conftest import EventLog, results_of, sid_of
@@ -209,7 +209,7 @@ def test_the_arm_off_its_reference_over_a_bench_artifact_stops_the_validation(re
         runner, log = validate(record, devices)
     finally:
         devices.close_owned()
-    assert runner.state is RunnerState.FAILED
+    assert runner.state is SessionState.FAILED
     assert str(runner.error).startswith(NOT_SEEN)
     positions = sorted(c.meta["position"] for c in record.captures(sid_of(runner)))
     assert positions == [0, 1, 2, 3, 4, 5]  # stopped at the first position 25 um from the start
@@ -230,7 +230,7 @@ def test_a_micrometer_misread_by_one_turn_fails_the_rigid_fit(record: Record) ->
     finally:
         operator.close()
         devices.close_owned()
-    assert runner.state is RunnerState.FAILED
+    assert runner.state is SessionState.FAILED
     res = results_of(record, runner)
     checks = checks_of(res)
     assert not checks["rigid_max"]["passed"]
@@ -250,7 +250,7 @@ def test_a_groove_width_far_off_its_tolerance_fails_the_validation(record: Recor
         runner, _ = validate(record, devices)
     finally:
         devices.close_owned()
-    assert runner.state is RunnerState.FAILED
+    assert runner.state is SessionState.FAILED
     res = results_of(record, runner)
     check = checks_of(res)["groove_width"]
     assert check["passed"] is False
@@ -267,7 +267,7 @@ def test_a_clean_validation_passes_every_gate(record: Record) -> None:
         runner, _ = validate(record, devices)
     finally:
         devices.close_owned()
-    assert runner.state is RunnerState.SUCCEEDED, runner.error
+    assert runner.state is SessionState.SUCCEEDED, runner.error
     res = results_of(record, runner)
     checks = checks_of(res)
     gates = {"table_moves", "groove_width", "rigid_mean", "rigid_max", "positions_measured"}
@@ -293,7 +293,7 @@ def test_the_artifact_knocked_between_two_repeatability_tests_fails_the_session(
 
     runner.subscribe(knock)
     try:
-        assert runner.run() is RunnerState.FAILED
+        assert runner.run() is SessionState.FAILED
     finally:
         devices.close_owned()
     checks = checks_of(results_of(record, runner))
@@ -317,7 +317,7 @@ def test_a_resumed_validation_continues_only_where_it_left_off(
     operator = FaultyOperator(devices, lambda i, x, y: (x + shift["x_mm"], y))
     try:
         first, _ = validate_until(record, devices, abort_at=10)
-        assert first.state is RunnerState.ABORTED
+        assert first.state is SessionState.ABORTED
         shift["x_mm"] = offset_um / 1000.0
         plan = get_plan("validation")
         row = record.get_session(sid_of(first))
@@ -334,11 +334,11 @@ def test_a_resumed_validation_continues_only_where_it_left_off(
     check = checks_of(res)["resume_position"]
     assert check["value"] == pytest.approx(offset_um, abs=0.5)  # the world's shift, measured
     if succeeds:
-        assert final is RunnerState.SUCCEEDED, again.error
+        assert final is SessionState.SUCCEEDED, again.error
         assert check["passed"]
         assert res["n_positions"] == 40
     else:
-        assert final is RunnerState.FAILED
+        assert final is SessionState.FAILED
         assert again.error is not None
         assert again.error.startswith(SETUP_MOVED)
         # it stopped at once: nothing after the re-capture of position 9

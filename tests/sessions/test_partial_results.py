@@ -11,7 +11,7 @@ from station.plans import parse_params
 from station.record import Record
 from station.reporting import text_tables, write_report
 from station.resources import report_document
-from station.runner import RunnerState, SessionRunner
+from station.runner import SessionRunner, SessionState
 from station.testing import FakeStation
 from tests.sessions.conftest import results_of, sid_of
 
@@ -22,7 +22,7 @@ def aborted_repeatability(record: Record) -> SessionRunner:
     runner = SessionRunner(record, plan, params, devices=FakeStation().devices())
     # J1: step 0 its reference, 1-8 its cycles; aborted as its sixth cycle starts: five measured
     runner.subscribe(lambda e: runner.abort() if e.type == "step_started" and e.data["index"] == 6 else None)
-    assert runner.run() is RunnerState.ABORTED
+    assert runner.run() is SessionState.ABORTED
     return runner
 
 

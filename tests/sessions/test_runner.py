@@ -14,7 +14,7 @@ from station.devices import ControllerError, DeviceTimeoutError, OperatorCancell
 from station.kinds import get_plan
 from station.plans import parse_params
 from station.record import Record, SessionLockError, station_lock
-from station.runner import ACTIVE_STATES, RunnerState, SessionRunner, reconcile
+from station.runner import ACTIVE_STATES, SessionRunner, SessionState, reconcile
 from station.testing import FakeRobot, FakeStation
 from tests.sessions.conftest import EventLog, results_of, sid_of
 
@@ -35,7 +35,7 @@ def test_repeatability_on_fakes_captures_every_cycle_and_computes_rp(
     record: Record, fake: FakeStation
 ) -> None:
     r, log = runner(record, fake, "repeatability", cycles=4, warmup_cycles=1, joints=[1, 3])
-    assert r.run() is RunnerState.SUCCEEDED
+    assert r.run() is SessionState.SUCCEEDED
     sid = sid_of(r)
     row = record.get_session(sid)
     assert row.state == "succeeded"
@@ -70,7 +70,7 @@ def test_events_have_per_session_sequence_and_increasing_ids(record: Record, fak
 
 def test_validation_on_fakes_compares_with_the_pattern(record: Record, fake: FakeStation) -> None:
     r, _ = runner(record, fake, "validation", steps_per_side=3)
-    assert r.run() is RunnerState.SUCCEEDED
+    assert r.run() is SessionState.SUCCEEDED
     res = results_of(record, r)
     assert res["n_positions"] == 12
     assert res["mean_um"] < 0.2
@@ -85,7 +85,7 @@ def test_validation_on_fakes_compares_with_the_pattern(record: Record, fake: Fak
 
 def test_direct_approach_moves_once_per_position(record: Record, fake: FakeStation) -> None:
     r, _ = runner(record, fake, "validation", steps_per_side=2, approach="direct")
-    assert r.run() is RunnerState.SUCCEEDED
+    assert r.run() is SessionState.SUCCEEDED
     assert len(fake.table.calls_of("move_to")) == 8
     assert results_of(record, r)["scale_calibration"] is None
 
@@ -93,7 +93,7 @@ def test_direct_approach_moves_once_per_position(record: Record, fake: FakeStati
 def test_preflight_reports_every_problem_and_moves_nothing(record: Record) -> None:
     fake = FakeStation(robot=FakeRobot(REF, max_step_deg=5.0))
     r, _log = runner(record, fake, "repeatability", cycles=3, joints=[1, 2], delta_deg=10)
-    assert r.run() is RunnerState.FAILED
+    assert r.run() is SessionState.FAILED
     row = record.get_session(sid_of(r))
     error = row.error or ""
     assert "pre-flight found" in error
@@ -107,7 +107,7 @@ def test_preflight_reports_every_problem_and_moves_nothing(record: Record) -> No
 def test_preflight_refuses_an_unpowered_arm(record: Record) -> None:
     fake = FakeStation(robot=FakeRobot(REF, powered=False, homed=False))
     r, _ = runner(record, fake, "repeatability", cycles=3, joints=[1])
-    assert r.run() is RunnerState.FAILED
+    assert r.run() is SessionState.FAILED
     error = record.get_session(sid_of(r)).error or ""
     assert "power is off" in error
     assert "not homed" in error
@@ -136,10 +136,10 @@ def test_pause_waits_at_a_safe_point_and_resume_continues(record: Record, fake: 
     done_while_paused = r.progress().done
     assert not moved_while_paused.wait(0.2)
     assert r.progress().done == done_while_paused
-    assert r.state is RunnerState.PAUSED
+    assert r.state is SessionState.PAUSED
     r.resume()
     thread.join(60)
-    assert r.state is RunnerState.SUCCEEDED
+    assert r.state is SessionState.SUCCEEDED
     assert log.states() == ["running", "pausing", "paused", "running", "succeeded"]
 
 
@@ -147,7 +147,7 @@ def test_stop_finishes_the_step_and_returns_to_the_reference(record: Record, fak
     r, log = runner(record, fake, "repeatability", cycles=10, warmup_cycles=0, joints=[1])
     # asked while step 3 runs (its start is reported from the runner's thread): step 3 is finished
     r.subscribe(lambda e: r.stop() if e.type == "step_started" and e.data["index"] == 3 else None)
-    assert r.run() is RunnerState.STOPPED
+    assert r.run() is SessionState.STOPPED
     sid = sid_of(r)
     assert fake.robot.calls_of("move_joints")[-1] == (REF,)
     assert [s.state for s in record.steps(sid)] == ["done"] * 4
@@ -170,7 +170,7 @@ def test_abort_mid_motion_stops_the_robot_and_moves_nothing_more(record: Record)
 
     r.subscribe(on_event)
     t0 = time.monotonic()
-    assert r.run() is RunnerState.ABORTED
+    assert r.run() is SessionState.ABORTED
     assert time.monotonic() - t0 < 20  # not the 30 s motion
     fake.robot.assert_called("stop")
     moves_after_stop = fake.robot.calls[[c[0] for c in fake.robot.calls].index("stop") :]
@@ -187,7 +187,7 @@ def test_controller_error_fails_the_session_and_keeps_the_captures(record: Recor
         "move_joints", ControllerError("Joint 1 limit", controller_text="Joint 1 limit"), nth=4
     )
     r, log = runner(record, fake, "repeatability", cycles=5, warmup_cycles=0, joints=[1])
-    assert r.run() is RunnerState.FAILED
+    assert r.run() is SessionState.FAILED
     row = record.get_session(sid_of(r))
     assert "Joint 1 limit" in (row.error or "")
     fake.robot.assert_called("stop")
@@ -201,7 +201,7 @@ def test_controller_error_fails_the_session_and_keeps_the_captures(record: Recor
 def test_camera_timeout_fails_the_session(record: Record, fake: FakeStation) -> None:
     fake.cam.fail_on("grab", DeviceTimeoutError("no frame within 2 s"), nth=2)
     r, _ = runner(record, fake, "repeatability", cycles=3, warmup_cycles=0, joints=[1])
-    assert r.run() is RunnerState.FAILED
+    assert r.run() is SessionState.FAILED
     assert "no frame within 2 s" in (record.get_session(sid_of(r)).error or "")
     assert len(record.captures(sid_of(r))) == 1
 
@@ -209,7 +209,7 @@ def test_camera_timeout_fails_the_session(record: Record, fake: FakeStation) -> 
 def test_operator_cancel_fails_the_validation_with_the_reason(record: Record, fake: FakeStation) -> None:
     fake.table.fail_on("move_to", OperatorCancelledError("the operator cancelled the move"), nth=3)
     r, _ = runner(record, fake, "validation", steps_per_side=2)
-    assert r.run() is RunnerState.FAILED
+    assert r.run() is SessionState.FAILED
     row = record.get_session(sid_of(r))
     assert "cancelled" in (row.error or "")
     assert len(record.captures(sid_of(r))) >= 1
@@ -236,7 +236,7 @@ def test_disk_full_fails_cleanly_without_a_half_written_capture(
 
     monkeypatch.setattr(_images.os, "write", write)
     r, _ = runner(record, fake, "repeatability", cycles=5, warmup_cycles=0, joints=[1])
-    assert r.run() is RunnerState.FAILED
+    assert r.run() is SessionState.FAILED
     row = record.get_session(sid_of(r))
     assert "No space left on device" in (row.error or "")
     caps = record.captures(sid_of(r))
@@ -266,7 +266,7 @@ def test_reconcile_marks_dead_sessions_interrupted(record: Record) -> None:
     with station_lock(record.data_dir, "checker"):
         assert reconcile(record) == [row.id]
     assert record.get_session(row.id).state == "interrupted"
-    assert RunnerState.INTERRUPTED not in ACTIVE_STATES
+    assert SessionState.INTERRUPTED not in ACTIVE_STATES
 
 
 def test_resume_skips_completed_tests_and_reruns_the_interrupted_one_from_its_start(
@@ -275,7 +275,7 @@ def test_resume_skips_completed_tests_and_reruns_the_interrupted_one_from_its_st
     r, _ = runner(record, fake, "repeatability", cycles=4, warmup_cycles=1, joints=[1, 3])
     # J1: steps 0-5 (reference, warm-up, 4 cycles); J3: 6-11. Aborted as J3's second cycle starts.
     r.subscribe(lambda e: r.abort() if e.type == "step_started" and e.data["index"] == 9 else None)
-    assert r.run() is RunnerState.ABORTED
+    assert r.run() is SessionState.ABORTED
     sid = sid_of(r)
     interrupted = {c.id for c in record.captures(sid) if c.meta["test"] == "J3"}
     assert len(interrupted) == 2  # J3's reference and first cycle
@@ -288,7 +288,7 @@ def test_resume_skips_completed_tests_and_reruns_the_interrupted_one_from_its_st
     )
     log = EventLog()
     resumed.subscribe(log)
-    assert resumed.run() is RunnerState.SUCCEEDED
+    assert resumed.run() is SessionState.SUCCEEDED
     caps = sorted(record.captures(sid), key=lambda c: c.id)
     # J1 is whole and kept; J3 runs again from its start: its reference, warm-up and all four cycles
     new = caps[first:]
@@ -315,7 +315,7 @@ def test_a_resumed_session_continues_its_progress_count(record: Record, fake: Fa
     r.subscribe(
         lambda e: r.abort() if e.type == "step_started" and e.data.get("name") == "J2 cycle 2" else None
     )
-    assert r.run() is RunnerState.ABORTED
+    assert r.run() is SessionState.ABORTED
     planned = r.progress().total
     sid = sid_of(r)
     j1_steps = sum(1 for s in record.steps(sid) if s.name.startswith("J1 "))
@@ -331,7 +331,7 @@ def test_a_resumed_session_continues_its_progress_count(record: Record, fake: Fa
     )
     log = EventLog()
     resumed.subscribe(log)
-    assert resumed.run() is RunnerState.SUCCEEDED
+    assert resumed.run() is SessionState.SUCCEEDED
     (event,) = log.of("resumed")
     kept = event.data["skipped_steps"]  # J1's steps: done, and not run again
     assert kept == j1_steps > 0
@@ -375,7 +375,7 @@ def test_repeatability_points_spread_as_the_arm_scatters(record: Record, fake: F
 
     fake.robot._motion = jittery  # type: ignore[method-assign]
     r, _ = runner(record, fake, "repeatability", cycles=6, warmup_cycles=0, joints=[2])
-    assert r.run() is RunnerState.SUCCEEDED
+    assert r.run() is SessionState.SUCCEEDED
     pts = np.array(results_of(record, r)["tests"]["J2"]["points_mm"])
     # the scene moves the crossing by (40, 20) px per degree of joint 1: 0.01 deg -> 0.447 px -> 4.47 um
     spread = np.linalg.norm(pts[1::2].mean(axis=0) - pts[0::2].mean(axis=0))

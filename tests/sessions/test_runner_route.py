@@ -19,7 +19,7 @@ from station.kinds.calibration.plan import CALIBRATION
 from station.kinematics import Kinematics
 from station.plans import CaptureResult, MoveJoints, PlanContext, ReferencePose, Step, parse_params
 from station.record import Record
-from station.runner import RunnerState, SessionRunner
+from station.runner import SessionRunner, SessionState
 from station.testing import FakeRobot, FakeStation
 from station.vision import MeasureParams
 from tests.sessions.conftest import EventLog, results_of, sid_of
@@ -46,7 +46,7 @@ def test_a_repeatability_after_a_jog_starts_with_the_route_through_the_lift_pose
 ) -> None:
     r, log = runner(record, fake, "repeatability", cycles=3, warmup_cycles=0, joints=[2], settle_s=0.0)
     fake.robot.joints = np.array(JOGGED)  # the reference is configured; the arm is elsewhere
-    assert r.run() is RunnerState.SUCCEEDED, r.error
+    assert r.run() is SessionState.SUCCEEDED, r.error
     sid = sid_of(r)
     first = min(record.steps(sid), key=lambda s: s.started_at)
     assert (first.name, first.state) == ("to the reference pose (through the lift pose)", "done")
@@ -72,11 +72,11 @@ def test_a_short_way_back_is_one_move_and_at_the_reference_there_is_no_route(
 ) -> None:
     r, _ = runner(record, fake, "repeatability", cycles=2, warmup_cycles=0, joints=[1], settle_s=0.0)
     fake.robot.joints = np.array(NEAR)
-    assert r.run() is RunnerState.SUCCEEDED, r.error
+    assert r.run() is SessionState.SUCCEEDED, r.error
     assert moves(fake)[0] == REF
     assert [s.name for s in record.steps(sid_of(r))][-1] == "to the reference pose (direct)"
     again, _ = runner(record, fake, "repeatability", cycles=2, warmup_cycles=0, joints=[1], settle_s=0.0)
-    assert again.run() is RunnerState.SUCCEEDED
+    assert again.run() is SessionState.SUCCEEDED
     assert not [s for s in record.steps(sid_of(again)) if s.name.startswith("to the reference pose")]
 
 
@@ -93,7 +93,7 @@ def test_a_route_the_driver_refuses_is_a_preflight_problem_and_nothing_moves(rec
     fake = FakeStation(robot=FakeRobot(REF, limits_deg=limits))
     r, log = runner(record, fake, "repeatability", cycles=2, warmup_cycles=0, joints=[1], settle_s=0.0)
     fake.robot.joints = np.array(JOGGED)
-    assert r.run() is RunnerState.FAILED
+    assert r.run() is SessionState.FAILED
     problems = log.of("preflight")[0].data["problems"]
     assert any(p.startswith("to the reference pose (through the lift pose): joint 3") for p in problems)
     fake.robot.assert_not_called("move_joints")
@@ -105,7 +105,7 @@ def test_a_validation_with_the_arm_off_its_reference_is_refused_and_moves_nothin
 ) -> None:
     r, log = runner(record, fake, "validation", steps_per_side=2)
     fake.robot.joints = np.array(JOGGED)
-    assert r.run() is RunnerState.FAILED
+    assert r.run() is SessionState.FAILED
     (problem,) = log.of("preflight")[0].data["problems"]
     assert problem.startswith("the arm is not at its reference pose (joint 4 commanded at +140.000 deg")
     assert "a validation never moves the arm" in problem
@@ -150,7 +150,7 @@ def test_a_stop_far_from_the_reference_returns_along_the_route(record: Record, f
     log = EventLog()
     r.subscribe(log)
     fake.robot.listeners.append(lambda q: r.stop() if q[3] == 90.0 else None)
-    assert r.run() is RunnerState.STOPPED
+    assert r.run() is SessionState.STOPPED
     (returned,) = log.of("returned")
     route = returned.data["moves"]
     assert [0.0, 0.0, 0.0, 90.0, 90.0, 0.0] in route  # up, turn the wrist back upright, down

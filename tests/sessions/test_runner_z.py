@@ -14,7 +14,7 @@ from station.devices import DeviceConnectionError, DeviceProtocolError
 from station.kinds import get_plan
 from station.plans import parse_params
 from station.record import Record
-from station.runner import RunnerState, SessionRunner
+from station.runner import SessionRunner, SessionState
 from station.testing import FakeDistanceSensor, FakeStation
 from tests.sessions.conftest import EventLog, results_of, sid_of
 
@@ -35,7 +35,7 @@ def test_z_is_recorded_with_each_capture_and_rp_is_reported_in_3d(tmp_path: Path
     fake = FakeStation(distance_sensor=sensor)
     with Record(tmp_path) as record:
         r, log = run(record, fake)
-        assert r.state is RunnerState.SUCCEEDED, r.error
+        assert r.state is SessionState.SUCCEEDED, r.error
         caps = record.captures(sid_of(r))
         assert [c.z_mm for c in caps] == pytest.approx([68.0, 68.001, 68.002, 68.003])
         assert [c.meta["z_mm"] for c in caps] == [c.z_mm for c in caps]
@@ -54,7 +54,7 @@ def test_z_is_recorded_with_each_capture_and_rp_is_reported_in_3d(tmp_path: Path
 def test_without_a_sensor_the_results_are_as_before(tmp_path: Path) -> None:
     with Record(tmp_path) as record:
         r, _ = run(record, FakeStation())
-        assert r.state is RunnerState.SUCCEEDED, r.error
+        assert r.state is SessionState.SUCCEEDED, r.error
         assert all(c.z_mm is None for c in record.captures(sid_of(r)))
         results = results_of(record, r)
         assert "rp3d_mm" not in results
@@ -66,7 +66,7 @@ def test_no_valid_distance_leaves_the_capture_without_z_and_says_why(tmp_path: P
     fake = FakeStation(distance_sensor=FakeDistanceSensor(lambda: next(reads)))
     with Record(tmp_path) as record:
         r, log = run(record, fake)
-        assert r.state is RunnerState.SUCCEEDED, r.error
+        assert r.state is SessionState.SUCCEEDED, r.error
         caps = record.captures(sid_of(r))
         assert [c.z_mm for c in caps] == [68.0, None, 68.0, 68.0]
         assert "measuring range" in caps[1].meta["z_error"]
@@ -82,7 +82,7 @@ def test_a_garbled_reply_is_read_again(tmp_path: Path) -> None:
     sensor.fail_on("read_mm", DeviceProtocolError("garbled"), nth=2)
     with Record(tmp_path) as record:
         r, log = run(record, FakeStation(distance_sensor=sensor))
-        assert r.state is RunnerState.SUCCEEDED, r.error
+        assert r.state is SessionState.SUCCEEDED, r.error
         assert all(c.z_mm == 68.0 for c in record.captures(sid_of(r)))
         assert len(sensor.calls_of("read_mm")) == 5
         assert any("reading again" in e.data["message"] for e in log.of("warning"))
@@ -94,7 +94,7 @@ def test_a_lost_sensor_fails_the_session_and_keeps_what_was_captured(tmp_path: P
     fake = FakeStation(distance_sensor=sensor)
     with Record(tmp_path) as record:
         r, _ = run(record, fake)
-        assert r.state is RunnerState.FAILED
+        assert r.state is SessionState.FAILED
         assert r.error is not None
         assert "cable pulled" in r.error
         assert [c.z_mm for c in record.captures(sid_of(r))] == [68.0, 68.0]

@@ -21,7 +21,7 @@ from station.config import StationDevices
 from station.kinds import get_plan
 from station.plans import parse_params
 from station.record import EventRow, Record
-from station.runner import RunnerState, SessionRunner
+from station.runner import SessionRunner, SessionState
 
 
 @pytest.fixture
@@ -72,7 +72,7 @@ def of(events: list[EventRow], kind: str) -> list[dict[str, Any]]:
 def test_a_correct_camera_model_passes_the_scale_check(record: Record, tmp_path: Path) -> None:
     devices = with_model(build_sim_station(seed=3), tmp_path / "camera.json", nominal_intrinsics())
     runner, events = repeatability(record, devices)
-    assert runner.state is RunnerState.SUCCEEDED, runner.error
+    assert runner.state is SessionState.SUCCEEDED, runner.error
     (check,) = of(events, "scale_check")
     assert check["passed"] is True
     assert check["where"] == "pre-flight"
@@ -86,7 +86,7 @@ def test_a_focal_length_1_percent_short_is_caught_in_pre_flight(record: Record, 
     robot = devices.robot
     assert robot is not None
     runner, events = repeatability(record, devices)
-    assert runner.state is RunnerState.FAILED
+    assert runner.state is SessionState.FAILED
     assert not moved(events), "the arm moved on a session that failed its pre-flight"
     (pre,) = of(events, "preflight")
     (problem,) = pre["problems"]
@@ -121,7 +121,7 @@ def test_a_focal_length_1_percent_long_is_caught_against_the_scale_calibration(
         runner.run()
     finally:
         devices.close_owned()
-    assert runner.state is RunnerState.FAILED
+    assert runner.state is SessionState.FAILED
     assert not moved(events)
     (check,) = of(events, "scale_check")
     # 1/1.01 of the true width, less the interval's lower half-width (0.1 %): about -0.9 %
@@ -137,7 +137,7 @@ def test_a_model_for_another_image_size_is_refused(record: Record, tmp_path: Pat
         build_sim_station(seed=3), tmp_path / "camera.json", CameraIntrinsics(K, np.zeros(5), (1280, 960))
     )
     runner, events = repeatability(record, devices)
-    assert runner.state is RunnerState.FAILED
+    assert runner.state is SessionState.FAILED
     assert not moved(events)
     (pre,) = of(events, "preflight")
     assert any("1280 x 960" in p and "640 x 480" in p for p in pre["problems"]), pre["problems"]
@@ -180,7 +180,7 @@ def test_off_the_crossing_the_first_capture_is_checked_and_fails_the_session(
     finally:
         robot.close()
     runner, events = repeatability(record, devices)
-    assert runner.state is RunnerState.FAILED
+    assert runner.state is SessionState.FAILED
     assert of(events, "preflight")[0]["problems"] == []  # nothing to measure there: deferred
     (check,) = of(events, "scale_check")
     assert check["where"].startswith("capture ")

@@ -14,7 +14,7 @@ from sim.station import build_sim_station
 from station.kinds import KINDS, get_plan
 from station.plans import parse_params
 from station.record import Record
-from station.runner import RunnerState, SessionRunner
+from station.runner import SessionRunner, SessionState
 from station.selftest_status import latest_selftest, selftest_check
 from tests.sessions.conftest import results_of, sid_of
 
@@ -46,7 +46,7 @@ def check_named(results: dict[str, Any], name: str) -> dict[str, Any]:
 
 def test_a_self_test_session_is_recorded_and_attached_to_later_sessions(record: Record) -> None:
     before = run(record, "repeatability", cycles=2, warmup_cycles=0, joints=[1])
-    assert before.state is RunnerState.SUCCEEDED, before.error
+    assert before.state is SessionState.SUCCEEDED, before.error
     res = results_of(record, before)
     assert res["selftest"] is None
     missing = check_named(res, "selftest")
@@ -56,7 +56,7 @@ def test_a_self_test_session_is_recorded_and_attached_to_later_sessions(record: 
 
     # the halt check is left out here: it latches the stop, which only a person at the station clears
     test = run(record, "selftest", checks=["directions", "world", "ready"])
-    assert test.state is RunnerState.SUCCEEDED, test.error
+    assert test.state is SessionState.SUCCEEDED, test.error
     res = results_of(record, test)
     assert res["passed"] is True
     assert [c["name"] for c in res["controller_checks"]] == ["directions", "world", "ready"]
@@ -67,7 +67,7 @@ def test_a_self_test_session_is_recorded_and_attached_to_later_sessions(record: 
     KINDS["selftest"].results.model_validate(res)
 
     after = run(record, "repeatability", cycles=2, warmup_cycles=0, joints=[1])
-    assert after.state is RunnerState.SUCCEEDED, after.error
+    assert after.state is SessionState.SUCCEEDED, after.error
     res = results_of(record, after)
     assert res["selftest"]["session_id"] == sid_of(test)
     assert res["selftest"]["passed"] is True
@@ -82,7 +82,7 @@ def test_a_self_test_session_is_recorded_and_attached_to_later_sessions(record: 
 
 def test_the_halt_check_latches_the_stop_and_says_so(record: Record) -> None:
     test = run(record, "selftest", time_scale=1.0, checks=["halt"])  # real time: the halt is timed
-    assert test.state is RunnerState.SUCCEEDED, test.error
+    assert test.state is SessionState.SUCCEEDED, test.error
     res = results_of(record, test)
     assert res["controller_checks"][0]["state"] == "passed"
     assert res["latched"] is True

@@ -22,7 +22,7 @@ from station.kinds import get_plan
 from station.metrology import fit_rigid, repeatability
 from station.plans import parse_params
 from station.record import CaptureRow, EventRow, Record
-from station.runner import RunnerState, SessionRunner
+from station.runner import SessionRunner, SessionState
 from tests.sessions.conftest import results_of, sid_of
 
 
@@ -96,7 +96,7 @@ def test_validation_session_measures_the_true_table_displacements(record: Record
     devices = sim_devices(seed=3)
     truth = TruthAtCaptures(devices)
     runner = run(record, devices, "validation", truth)
-    assert runner.state is RunnerState.SUCCEEDED, runner.error
+    assert runner.state is SessionState.SUCCEEDED, runner.error
     res = results_of(record, runner)
     caps = record.captures(sid_of(runner))
     assert len(caps) == 40
@@ -123,7 +123,7 @@ def test_validation_recovers_the_true_groove_width_with_backlash_on(record: Reco
     spec = replace(base, artifact=replace(ArtifactSpec(), groove_width_mm=0.770))
     assert spec.table.backlash_mm > 0
     runner = run(record, sim_devices(spec, seed=5), "validation")
-    assert runner.state is RunnerState.SUCCEEDED, runner.error
+    assert runner.state is SessionState.SUCCEEDED, runner.error
     res = results_of(record, runner)
     est, u = res["scale_calibration"]["groove_width_mm"], res["scale_calibration"]["u_mm"]
     assert u <= 0.002 * 0.770, f"u = {u:.6f} mm is more than 0.2 % of the width"
@@ -134,7 +134,7 @@ def test_repeatability_agrees_with_the_worlds_truth(record: Record) -> None:
     devices = sim_devices(seed=7)
     truth = TruthAtCaptures(devices)
     runner = run(record, devices, "repeatability", truth, cycles=10, warmup_cycles=1, joints=[1, 3, 5])
-    assert runner.state is RunnerState.SUCCEEDED, runner.error
+    assert runner.state is SessionState.SUCCEEDED, runner.error
     sid = sid_of(runner)
     res = results_of(record, runner)
     caps = record.captures(sid)
@@ -181,7 +181,7 @@ def test_measured_rp_lies_in_the_monte_carlo_interval_of_the_configured_arm(reco
     mc = np.array([simulate_repeatability(seed=1000 + k, protocol=protocol).rp_mm["J5"] for k in range(80)])
     lo, hi = np.quantile(mc, [0.025, 0.975])
     runner = run(record, sim_devices(seed=11), "repeatability", cycles=30, warmup_cycles=3, joints=[5])
-    assert runner.state is RunnerState.SUCCEEDED, runner.error
+    assert runner.state is SessionState.SUCCEEDED, runner.error
     measured = results_of(record, runner)["rp_mm"]["J5"]
     assert lo <= measured <= hi, (
         f"measured RP {measured:.5f} mm outside the Monte Carlo 95 % [{lo:.5f}, {hi:.5f}]"
@@ -207,7 +207,7 @@ def test_repeatability_in_3d_with_the_z_sensor(record: Record) -> None:
 
     sensor.read_mm = read_mm  # type: ignore[method-assign]
     runner = run(record, devices, "repeatability", truth, cycles=6, warmup_cycles=0, joints=[3])
-    assert runner.state is RunnerState.SUCCEEDED, runner.error
+    assert runner.state is SessionState.SUCCEEDED, runner.error
     res = results_of(record, runner)
     caps = record.captures(sid_of(runner))
     # one reading per capture (one frame each), after the pre-flight scale check's (station.scale_preflight)

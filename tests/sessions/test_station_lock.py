@@ -9,7 +9,7 @@ from pathlib import Path
 from station.kinds import get_plan
 from station.plans import parse_params
 from station.record import EventRow, Record, SessionLockError, lock_holder
-from station.runner import RunnerState, SessionRunner
+from station.runner import SessionRunner, SessionState
 from station.testing import FakeStation
 from tests.sessions.conftest import sid_of
 
@@ -21,7 +21,7 @@ def _source(record: Record) -> str:
     plan = get_plan("validation")
     params = parse_params(plan, {"pattern_um": [[0, 0], [254, 0], [0, 254]]})
     runner = SessionRunner(record, plan, params, devices=FakeStation().devices())
-    assert runner.run() is RunnerState.SUCCEEDED, runner.error
+    assert runner.run() is SessionState.SUCCEEDED, runner.error
     return sid_of(runner)
 
 
@@ -86,7 +86,7 @@ def test_whoever_sees_succeeded_starts_the_next_session_at_once_while_others_lis
             current = _Started(_tiny_session(record, source))
             started.append(current)
             current.settled.wait(60)  # a hang fails through pytest-timeout
-            if current.errors or current.runner.state is not RunnerState.SUCCEEDED:
+            if current.errors or current.runner.state is not SessionState.SUCCEEDED:
                 break
     finally:
         lister.done.set()
@@ -121,11 +121,11 @@ def test_the_next_start_happens_while_the_previous_session_is_still_in_its_threa
                 outcome.append(exc)
 
     first.subscribe(start_next)
-    assert first.run() is RunnerState.SUCCEEDED
+    assert first.run() is SessionState.SUCCEEDED
     assert outcome, "the first session never reported succeeded"
     started = outcome[0]
     assert isinstance(started, threading.Thread), started
     started.join(60)
-    assert second.state is RunnerState.SUCCEEDED, second.error
+    assert second.state is SessionState.SUCCEEDED, second.error
     assert record.get_session(sid_of(first)).state == "succeeded"
     assert record.get_session(sid_of(second)).state == "succeeded"

@@ -24,7 +24,7 @@ from station.kinds import get_plan
 from station.metrology import fit_rigid
 from station.plans import parse_params
 from station.record import Record
-from station.runner import RunnerState, SessionRunner
+from station.runner import SessionRunner, SessionState
 from tests.sessions.conftest import results_of, sid_of
 
 #: A small pattern (um, multiples of the sim micrometers' 0.0002 in), both directions, both axes.
@@ -58,7 +58,7 @@ def test_a_ruler_validation_measures_the_true_table_displacements(record: Record
         runner.run()
     finally:
         devices.close_owned()
-    assert runner.state is RunnerState.SUCCEEDED, runner.error
+    assert runner.state is SessionState.SUCCEEDED, runner.error
     res = results_of(record, runner)
     caps = record.captures(sid_of(runner))
     assert len(caps) == len(PATTERN_UM)

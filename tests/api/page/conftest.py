@@ -50,6 +50,10 @@ class Visit:
     console_errors: list[str] = field(default_factory=list)
     failed: list[str] = field(default_factory=list)
     requests: list[str] = field(default_factory=list)
+    busy: list[str] = field(default_factory=list)
+    """The live view's snapshots the service answered 409: the page asked between two of its reads of the
+    station while the arm set off (after an abort, the route to the reference pose); the page says "no new
+    picture" and keeps the last one, which is the answer, not a failure."""
 
     def watch(self) -> Visit:
         context = self.page.context
@@ -65,7 +69,9 @@ class Visit:
             self.console_errors.append(message.text)
 
     def _response(self, response: Any) -> None:
-        if response.status >= 400:
+        if response.status == 409 and "/api/v1/camera/snapshot.png" in response.url:
+            self.busy.append(response.url)
+        elif response.status >= 400:
             self.failed.append(f"{response.status} {response.url}")
 
     def state(self) -> str:
