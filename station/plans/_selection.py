@@ -15,7 +15,14 @@ from datetime import UTC, date, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    SerializerFunctionWrapHandler,
+    model_serializer,
+    model_validator,
+)
 
 from station.plans import PlanError
 
@@ -84,6 +91,32 @@ def selection_problem(
                 return f"sessions names {s!r} twice: name each session once"
             seen.add(key)
     return None
+
+
+class SourceParams(BaseModel):
+    """The source parameters of a plan that reads stored sessions (reanalyse, sweep): exactly one of
+    ``session``, ``sessions`` and ``select``, stored without the forms not given."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    session: str | None = Field(None, min_length=4, description="id (or unique prefix) of a stored session")
+    sessions: list[str] | None = Field(
+        None, description="an archive selection by ids (or unique prefixes) of stored sessions"
+    )
+    select: SessionFilter | None = Field(
+        None, description="an archive selection by filter: the succeeded sessions of kind, station, since"
+    )
+
+    @model_serializer(mode="wrap")
+    def _stored(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
+        return without_unused(handler(self))
+
+    @model_validator(mode="after")
+    def _one_source(self) -> SourceParams:
+        problem = selection_problem(self.session, self.sessions, self.select)
+        if problem is not None:
+            raise ValueError(problem)
+        return self
 
 
 def resolve(

@@ -12,15 +12,6 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from pydantic import (
-    BaseModel,
-    ConfigDict,
-    Field,
-    SerializerFunctionWrapHandler,
-    model_serializer,
-    model_validator,
-)
-
 from station.compute import LocalBackend
 from station.plans import (
     CaptureResult,
@@ -35,12 +26,10 @@ from station.plans import (
 from station.plans._recorded import camera_height_of, record_of, reference_of, stored_captures
 from station.plans._ruler import capture_params
 from station.plans._selection import (
-    SessionFilter,
     Source,
+    SourceParams,
     missing_images,
     resolve,
-    selection_problem,
-    without_unused,
 )
 from station.record import CaptureRow, Record, SessionRow
 from station.vision import MeasureParams, RulerParams
@@ -59,27 +48,8 @@ def measure_stored(
         return [r.to_json() for r in local.measure(paths, params, cancelled=ctx.cancelled)]
 
 
-class ReanalyseParams(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    session: str | None = Field(None, min_length=4, description="id (or unique prefix) of any stored session")
-    sessions: list[str] | None = Field(
-        None, description="an archive selection by ids (or unique prefixes) of stored sessions"
-    )
-    select: SessionFilter | None = Field(
-        None, description="an archive selection by filter: the succeeded sessions of kind, station, since"
-    )
-
-    @model_serializer(mode="wrap")
-    def _stored(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
-        return without_unused(handler(self))
-
-    @model_validator(mode="after")
-    def _one_source(self) -> ReanalyseParams:
-        problem = selection_problem(self.session, self.sessions, self.select)
-        if problem is not None:
-            raise ValueError(problem)
-        return self
+class ReanalyseParams(SourceParams):
+    """What a re-analysis reads: one stored session, or an archive selection (``SourceParams``)."""
 
 
 class ReanalysePlan:

@@ -8,13 +8,8 @@ from collections.abc import Iterator, Sequence
 from typing import Any, Literal
 
 from pydantic import (
-    BaseModel,
-    ConfigDict,
     Field,
-    SerializerFunctionWrapHandler,
     field_validator,
-    model_serializer,
-    model_validator,
 )
 
 from station.displacements import CALIBRATIONS
@@ -32,21 +27,16 @@ from station.kinds.sweep.archive import (
 from station.parameter_study import grid, run_sweep, seed_trials
 from station.plans import CaptureResult, Compute, PlanContext, PlanError, ReferencePose, Step
 from station.plans._recorded import record_of
-from station.plans._selection import SessionFilter, Source, resolve, selection_problem, without_unused
+from station.plans._selection import Source, SourceParams, resolve
 from station.vision import field_name
 
 
-class SweepParams(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
+class SweepParams(SourceParams):
     session: str | None = Field(
         None, min_length=4, description="id (or unique prefix) of a stored validation session"
     )
     sessions: list[str] | None = Field(
         None, description="an archive selection by ids (or unique prefixes) of stored validation sessions"
-    )
-    select: SessionFilter | None = Field(
-        None, description="an archive selection by filter: the succeeded sessions of kind, station, since"
     )
     grid: dict[str, list[Any]] | None = Field(
         None,
@@ -70,17 +60,6 @@ class SweepParams(BaseModel):
                 raise ValueError(f"grid {name!r}: no values; give at least one, e.g. {{{key!r}: [3, 5]}}")
             out[key] = values
         return out
-
-    @model_serializer(mode="wrap")
-    def _stored(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
-        return without_unused(handler(self))
-
-    @model_validator(mode="after")
-    def _one_source(self) -> SweepParams:
-        problem = selection_problem(self.session, self.sessions, self.select)
-        if problem is not None:
-            raise ValueError(problem)
-        return self
 
 
 class SweepPlan:
