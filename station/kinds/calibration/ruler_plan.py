@@ -14,17 +14,18 @@ For each ruler of the cell (``[[calibration.rulers]]``, :mod:`station.ruler_conf
   other directions than the surface's normal place the camera along its axis.
 
 Each is one capture, marked as a ruler's (``station.plans._ruler``). The frames at one position of one
-branch (its turns, depths and leans) are one step, **re-centred** first: the camera goes to a view square
-on the ruler turned :data:`VIEW_TURNS_DEG` (the ruler along the image's short side, its pattern across the
-long one: the widest field across the ruler, where an arm a millimetre or two off still sees it), and an
-:class:`~station.plans.Align` measures the ruler there (``measure_ruler``'s ``position_mm`` and
-``offset_mm`` under the reference pixel) and moves the camera over the planned point (within
-``centre_tolerance_mm``). The displacement this made (the nominal model's, a translation in the ruler's
-frame) is then added to each frame's planned pose (:class:`~station.plans.MoveAligned`, recorded with
-the step as ``recentred``): frames at turns 0 and 180, whose narrower field across the ruler loses the
-pattern when the arm is off, keep it in view. A resume runs an interrupted step again from its view, so
-that a step's frames share one re-centring (the analysis takes the latest attempt of a step). The arm
-goes to each position through the lift poses; between the frames of one step it makes a short move.
+branch (its turns, depths and leans) are one step, **re-centred** first. Each frame has a view: its own
+camera axis meeting the ruler's axis at the planned position at the working distance, turned about itself
+until the ruler runs along the image's short side (the widest field across it, where an arm a millimetre
+or two off still sees the pattern), in the frame's branch of the arm (frames whose views are alike share
+one). An :class:`~station.plans.Align` measures the ruler at each view (``measure_ruler``'s
+``position_mm`` and ``offset_mm`` under the reference pixel) and moves the camera over the planned point
+(within ``centre_tolerance_mm``); each frame is then taken at its planned pose shifted by the displacement
+its view's Align made (the nominal model's, a translation; :class:`~station.plans.MoveAligned`, recorded
+with the step as ``recentred``): frames at turns 0 and 180, whose narrower field across the ruler loses
+the pattern when the arm is off, keep it in view. A resume runs an interrupted step again from its first
+view, so that a step's frames share one re-centring (the analysis takes the latest attempt of a step).
+The arm goes to each position through the lift poses; within a step it makes short moves.
 """
 
 from __future__ import annotations
@@ -69,12 +70,10 @@ LEAN_AZIMUTHS_DEG = (0.0, 90.0, 180.0, 270.0)
 """The directions the camera leans toward, from the ruler's +s about its normal."""
 LEAN_TILT_MARGIN_DEG = 5.0
 """A leaning frame is measured with a tilt prior this much looser than the lean."""
-VIEW_TURNS_DEG = (90.0, 270.0)
-"""The turns of the re-centring view (the one whose joints are nearest the step's first frame): the ruler
-along the image's short side, the widest field across it (measured: the turns that kept the pattern in view
-with the nominal arm about a millimetre off)."""
 SAME_BRANCH_DEG = 15.0
-"""A re-centring view serves a frame whose joints 1 to 5 are within this of the view's (one branch)."""
+"""A frame's re-centring view has its joints 1 to 5 within this of the frame's (one branch of the arm)."""
+SHARED_VIEW_DEG = 3.0
+"""Frames of one step share a view when their views' joints 1 to 5 are within this of each other."""
 MAX_RECENTRE_STEP_MM = 1.9
 """The longest single re-centring move (within the Align's 2 mm bound); longer ones go in parts."""
 
@@ -192,43 +191,59 @@ def ruler_configurations(
     return [replace(c, index=first_index + i) for i, (*_, c) in enumerate(found)]
 
 
-def _view_candidates(cell: CalibrationCell, ruler: int, s: float) -> list[tuple[str, tuple[float, ...]]]:
-    """Every re-centring view of ``ruler`` at ``s`` within the limits: square on it, on its axis, at the
-    working distance, turned by each of :data:`VIEW_TURNS_DEG`, in each joint solution; by name."""
-    kin = cell.kinematics
-    r = cell.rulers[ruler]
-    F = ruler_frame(r.origin_mm, r.direction, r.normal)
-    out: list[tuple[str, tuple[float, ...]]] = []
-    for turn in VIEW_TURNS_DEG:
-        R = F[:3, :3] @ rot_z(math.radians(turn))
-        pose = transform(R, F[:3, 3] + F[:3, 0] * s - cell.working_distance_mm * R[:, 2])
-        try:
-            sols = kin.inverse_all(pose)
-        except KinematicsError:
-            continue
-        sols = [q for q in sols if kin.within_limits(q, margin_deg=LIMIT_MARGIN_DEG)]
-        out += [(f"turn {turn:g} #{k}", quantised(q)) for k, q in enumerate(sols)]
-    return out
-
-
 def _branch_distance(a: Sequence[float], b: Sequence[float]) -> float:
     """How far apart two postures are, the camera's turn about its axis (joint 6) left out (deg)."""
     d = (np.subtract(a[:5], b[:5]) + 180.0) % 360.0 - 180.0
     return float(np.max(np.abs(d)))
 
 
-def _view_of(
-    candidates: Sequence[tuple[str, tuple[float, ...]]], c: RulerConfiguration
-) -> tuple[str, tuple[float, ...]] | None:
-    """The view that re-centres frame ``c``: the candidate in the frame's branch (joints 1 to 5 within
-    :data:`SAME_BRANCH_DEG` of the frame's; the arm's error there is the frame's, whatever the turn),
-    the nearest; None when no candidate is in its branch."""
-    near = [(_branch_distance(q, c.joints_deg), name, q) for name, q in candidates]
-    near = [n for n in near if n[0] <= SAME_BRANCH_DEG]
-    if not near:
-        return None
-    _, name, q = min(near)
-    return name, q
+def _view_of(cell: CalibrationCell, c: RulerConfiguration) -> tuple[float, ...] | None:
+    """The joints of the view that re-centres frame ``c``: the frame's own camera axis, meeting the ruler's
+    axis at the planned position at the working distance, turned about itself (the shorter way round the
+    limits allow) until the ruler runs along the image's short side (the widest field across it), in the
+    frame's branch (joints 1 to 5 within :data:`SAME_BRANCH_DEG` of the frame's: the arm's error there is
+    the frame's, whatever the turn); None when that pose is out of reach or of the limits."""
+    kin = cell.kinematics
+    r = cell.rulers[c.ruler]
+    F = ruler_frame(r.origin_mm, r.direction, r.normal)
+    R = c.camera_pose[:3, :3]
+    along = R.T @ F[:3, 0]  # the ruler's direction in the camera's frame
+    turn = math.degrees(math.atan2(along[1], along[0]))  # its image angle: +/-90 wanted
+    d = (turn - 90.0 + 90.0) % 180.0 - 90.0  # the smallest turn of the camera that brings it there
+    point = F[:3, 3] + F[:3, 0] * c.position_mm
+    for turn_by in sorted((d, d - 180.0 if d > 0 else d + 180.0), key=abs):  # either way round
+        Rv = R @ rot_z(math.radians(turn_by))
+        pose = transform(Rv, point - cell.working_distance_mm * Rv[:, 2])  # the frame's axis: Rv's too
+        try:
+            q = kin.inverse(pose, seed_deg=c.joints_deg)
+        except KinematicsError:
+            continue
+        joints = quantised(unwrap_near(q, c.joints_deg, kin.joint_limits_deg))
+        if kin.within_limits(joints, margin_deg=LIMIT_MARGIN_DEG) and (
+            _branch_distance(joints, c.joints_deg) <= SAME_BRANCH_DEG
+        ):
+            return joints
+    return None
+
+
+def _views(
+    cell: CalibrationCell, group: Sequence[RulerConfiguration]
+) -> tuple[dict[str, tuple[float, ...]], list[str | None]]:
+    """The views of a step's frames, by name (a frame shares an earlier frame's view when they are within
+    :data:`SHARED_VIEW_DEG` of each other, its turn left out), and each frame's view (None: none)."""
+    views: dict[str, tuple[float, ...]] = {}
+    names: list[str | None] = []
+    for c in group:
+        q = _view_of(cell, c)
+        if q is None:
+            names.append(None)
+            continue
+        name = next((n for n, v in views.items() if _branch_distance(v, q) <= SHARED_VIEW_DEG), None)
+        if name is None:
+            name = f"view {len(views)}"
+            views[name] = q
+        names.append(name)
+    return views, names
 
 
 def _recentre(
@@ -319,9 +334,7 @@ def ruler_steps(
     settle: list[Any] = [Settle(params.settle_s)] if params.settle_s else []
     for g, group in enumerate(_groups(configs)):
         head = group[0]
-        candidates = _view_candidates(cell, head.ruler, head.position_mm)
-        chosen = [_view_of(candidates, c) for c in group]
-        views = dict(v for v in chosen if v is not None)  # in the order the frames need them
+        views, chosen = _views(cell, group)
         actions: list[Any] = [SetSpeed(params.speed_pct)] if first and g == 0 else []
         where = {ARTIFACT_KEY: RULER, "ruler": head.ruler, "position_mm": head.position_mm}
         step_meta = {**where, "configuration": head.index, "solution": head.solution}
@@ -353,7 +366,7 @@ def ruler_steps(
             else:
                 actions += [MoveJoints(q) for q in split_move(here, c.joints_deg, step_limit)]
             if v is not None:
-                actions.append(MoveAligned(_recentred(cell, c, *v), c.joints_deg))
+                actions.append(MoveAligned(_recentred(cell, c, v, views[v]), c.joints_deg))
             actions += settle
             actions.append(Capture(1, c.meta(params.ruler_lean_deg)))
             here = c.joints_deg
@@ -366,7 +379,6 @@ def ruler_steps(
 
 __all__ = [
     "LEAN_AZIMUTHS_DEG",
-    "VIEW_TURNS_DEG",
     "RulerConfiguration",
     "ruler_configurations",
     "ruler_frame",
