@@ -58,6 +58,21 @@ def quantised(q: npt.ArrayLike) -> tuple[float, ...]:
     return tuple(round(float(a), JOINT_DECIMALS) for a in np.asarray(q, dtype=float))
 
 
+def unwrap_near(q: npt.ArrayLike, seed: npt.ArrayLike, limits: npt.ArrayLike) -> tuple[float, ...]:
+    """``q`` with each joint moved by whole turns to the equivalent angle nearest ``seed`` that stays within
+    its limits (inverse kinematics wraps angles to (-180, 180]: joint 6 at +180 and -180 is one pose)."""
+    out = []
+    qs, ss = np.asarray(q, dtype=float), np.asarray(seed, dtype=float)
+    for a, s, (lo, hi) in zip(qs, ss, np.asarray(limits, dtype=float), strict=True):
+        best = float(a)
+        for k in (-1, 1):
+            alt = float(a) + 360.0 * k
+            if lo <= alt <= hi and abs(alt - s) < abs(best - s):
+                best = alt
+        out.append(best)
+    return tuple(out)
+
+
 def split_move(start: Sequence[float], end: Sequence[float], max_step_deg: float) -> list[tuple[float, ...]]:
     """Waypoints from ``start`` (excluded) to ``end`` (included), no joint moving more than ``max_step_deg``
     between two of them, at the controller's resolution."""
@@ -313,5 +328,6 @@ __all__ = [
     "split_move",
     "step_limit",
     "travel",
+    "unwrap_near",
     "worst_joint",
 ]

@@ -125,13 +125,19 @@ class Correction:
 @dataclass(frozen=True)
 class AlignInput:
     """What :attr:`Align.correct` sees: where the arm is (encoders), the measured crossing (px; None with
-    the measurement's ``error`` when it failed), the distance sensor's reading (None without a sensor)."""
+    the measurement's ``error`` when it failed), the distance sensor's reading (None without a sensor).
+
+    An Align whose ``meta`` marks a ruler's view (``station.plans._ruler``) measures the ruler instead:
+    ``ruler_st_mm`` is then its ``(position_mm, offset_mm)`` under the reference pixel and ``center_px``
+    is None (both None, with ``error``, when the ruler is not measured).
+    """
 
     joints_deg: tuple[float, ...]
     center_px: tuple[float, float] | None
     z_mm: float | None
     image_size: tuple[int, int]
     error: str | None = None
+    ruler_st_mm: tuple[float, float] | None = None
 
 
 class AlignSkippedError(Exception):
@@ -159,9 +165,40 @@ class Align:
     max_joint_deg: float = 2.0
     max_iterations: int = 6
     settle_s: float = 0.25
+    view: str = ""
+    """When set, the aligned joints are also kept under ``aligned_views[view]`` in the step's data: what a
+    later :class:`MoveAligned` of the step starts from (several views, one name each)."""
 
 
-Action = MoveJoints | MoveTable | SetSpeed | Settle | Capture | Compute | Align | MoveOffset | DeviceCheck
+@dataclass(frozen=True)
+class MoveAligned:
+    """Move the arm to a pose that depends on where the step's last :class:`Align` ended.
+
+    ``target(views)`` (each named Align's final encoder reading, :attr:`Align.view`) returns the joints
+    and what to record of the correction (stored with the step's data under ``recentred``, one entry per
+    move). Pre-flight
+    checks ``planned_deg`` (the target with no correction); the runner refuses a target more than
+    ``max_joint_deg`` from it (:class:`AlignSkippedError`: the rest of the step is skipped) and checks
+    the move with ``check_move`` before it is sent.
+    """
+
+    target: Callable[[Mapping[str, tuple[float, ...]]], tuple[tuple[float, ...], Mapping[str, Any]]]
+    planned_deg: tuple[float, ...]
+    max_joint_deg: float = 2.0
+
+
+Action = (
+    MoveJoints
+    | MoveTable
+    | SetSpeed
+    | Settle
+    | Capture
+    | Compute
+    | Align
+    | MoveOffset
+    | MoveAligned
+    | DeviceCheck
+)
 
 
 @dataclass(frozen=True)
@@ -291,6 +328,7 @@ __all__ = [
     "Compute",
     "Correction",
     "DeviceCheck",
+    "MoveAligned",
     "MoveJoints",
     "MoveOffset",
     "MoveTable",

@@ -27,6 +27,7 @@ from station.plans import (
     Capture,
     Compute,
     DeviceCheck,
+    MoveAligned,
     MoveJoints,
     MoveOffset,
     MoveTable,
@@ -36,10 +37,11 @@ from station.plans import (
     Settle,
     Step,
 )
+from station.plans._ruler import capture_params
 from station.runner._journal import Journal
 from station.runner._states import AbortRequestedError, SessionError
 from station.runner._store import Grabbed, StepRun
-from station.vision import MeasurementError, MeasureParams, measure
+from station.vision import MeasurementError, MeasureParams, measure, measure_ruler
 
 
 @dataclass
@@ -159,20 +161,30 @@ class ActionExecutor:
             z_mm = meta.get("z_mm")  # the distance sensor's reading with the frame (None without one)
             image = grabbed.frames[0].image
             center: tuple[float, float] | None = None
+            ruler: tuple[float, float] | None = None
             error: str | None = None
+            params = capture_params(meta, self.measure_params, image.shape)
             try:
-                m = measure(image, self.measure_params)
-                center = (float(m.center_px[0]), float(m.center_px[1]))
+                if isinstance(params, MeasureParams):
+                    m = measure(image, params)
+                    center = (float(m.center_px[0]), float(m.center_px[1]))
+                else:  # a ruler's view (station.plans._ruler): where along and across it
+                    r = measure_ruler(image, params)
+                    ruler = (float(r.position_mm), float(r.offset_mm))
             except MeasurementError as exc:
                 error = exc.message
             joints = tuple(float(a) for a in meta.get("joints_deg", planned))
-            seen = AlignInput(joints, center, z_mm, (int(image.shape[1]), int(image.shape[0])), error)
+            size = (int(image.shape[1]), int(image.shape[0]))
+            seen = AlignInput(joints, center, z_mm, size, error, ruler_st_mm=ruler)
             correction = action.correct(seen)
             if correction is None:
                 # offsets start from where the controller was commanded (its own 0.001 deg grid)
                 commanded = meta.get("commanded_joints_deg", joints)
                 run.offset_base = tuple(float(a) for a in commanded)
-                return {"aligned_joints_deg": list(joints), "corrections": corrections}
+                done: dict[str, Any] = {"aligned_joints_deg": list(joints), "corrections": corrections}
+                if action.view:  # a named view: kept for the step's MoveAligned
+                    done["aligned_views"] = {**run.data.get("aligned_views", {}), action.view: list(joints)}
+                return done
             if iteration == action.max_iterations:
                 break
             worst = max(abs(t - p) for t, p in zip(correction.target_deg, planned, strict=True))
@@ -192,6 +204,25 @@ class ActionExecutor:
         raise AlignSkippedError(
             f"not aligned after {action.max_iterations} corrections: configuration skipped"
         )
+
+    def move_aligned(self, action: MoveAligned) -> dict[str, Any]:
+        """To ``action.target`` of where the step's Align ended, within its bound of the planned joints."""
+        robot = require(self._devices().robot, "robot")
+        run = self._run()
+        views = run.data.get("aligned_views")
+        if not views:
+            raise PlanError("a MoveAligned needs a named Align (view) that succeeded before it in its step")
+        target, record = action.target({k: tuple(float(a) for a in v) for k, v in views.items()})
+        worst = max(abs(t - p) for t, p in zip(target, action.planned_deg, strict=True))
+        if worst > action.max_joint_deg:
+            raise AlignSkippedError(
+                f"the re-centred pose is {worst:.3f} deg from the planned one (bound {action.max_joint_deg}"
+                " deg): the artifact is not where the cell says; the step's remaining frames skipped"
+            )
+        robot.check_move(target)
+        robot.move_joints(target)
+        run.offset_base = tuple(target)
+        return {"recentred": [*run.data.get("recentred", []), dict(record)]}
 
     # ------------------------------------------------------------------ grabbing
 
@@ -248,6 +279,7 @@ HANDLERS: dict[type, Handler] = {
     Settle: ActionExecutor.settle,
     Capture: ActionExecutor.capture,
     Align: ActionExecutor.align,
+    MoveAligned: ActionExecutor.move_aligned,
 }
 """The action executor's registry: each action type's handler."""
 
@@ -261,4 +293,4 @@ def require(device: Any, name: str) -> Any:
 
 def step_moves(step: Step) -> bool:
     """Whether the step moves the arm or the table."""
-    return any(isinstance(a, MoveJoints | MoveTable | MoveOffset | Align) for a in step.actions)
+    return any(isinstance(a, MoveJoints | MoveTable | MoveOffset | Align | MoveAligned) for a in step.actions)

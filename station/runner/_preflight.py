@@ -13,7 +13,7 @@ from pydantic import BaseModel
 from station.arm_route import TO_REFERENCE_HINT, describe_offset, max_step_of, plan_route
 from station.config import StationDevices
 from station.devices import DeviceError, MotionRejectedError, Robot, StopLatchedError, XYTable
-from station.plans import MoveJoints, MoveOffset, MoveTable, Plan, PlanContext, SetSpeed, Step
+from station.plans import MoveAligned, MoveJoints, MoveOffset, MoveTable, Plan, PlanContext, SetSpeed, Step
 from station.record import Record
 from station.runner._states import PRELUDE_BASE
 
@@ -73,17 +73,20 @@ def _motion_problems(steps: Sequence[Step], robot: Robot, start: tuple[float, ..
                     problems.append(f"{step.name}: {exc}")
                 previous = target
                 continue
-            if not isinstance(action, MoveJoints):
+            if not isinstance(action, MoveJoints | MoveAligned):
                 continue
-            base = action.target_deg
-            key = (tuple(previous), action.target_deg)
+            # a re-centred move is checked at its planned pose (no correction); the runner checks it
+            # again where it goes
+            target = action.target_deg if isinstance(action, MoveJoints) else action.planned_deg
+            base = target
+            key = (tuple(previous), target)
             if key not in seen:
                 seen.add(key)
                 try:
-                    robot.check_move(action.target_deg, start_deg=previous)
+                    robot.check_move(target, start_deg=previous)
                 except MotionRejectedError as exc:
                     problems.append(f"{step.name}: {exc}")
-            previous = action.target_deg
+            previous = target
     return problems
 
 

@@ -17,7 +17,16 @@ from station.config import StationDevices
 from station.kinds import get_plan
 from station.kinds.calibration.params import CalibrationCell, CalibrationParams
 from station.kinds.calibration.ruler_plan import LATERAL_MM, LEAN_AZIMUTHS_DEG, TURN_JITTER_DEG, ruler_frame
-from station.plans import Capture, PlanContext, PlanError, parse_params
+from station.plans import (
+    Align,
+    Capture,
+    MoveAligned,
+    MoveJoints,
+    PlanContext,
+    PlanError,
+    Settle,
+    parse_params,
+)
 from station.plans._ruler import is_ruler
 from station.vision import MeasureParams
 
@@ -80,6 +89,21 @@ def test_the_sim_cell_has_its_rulers_and_the_full_plan_frames_them_as_the_bench(
     steps = list(plan.steps(params, PlanContext(measure_params=MeasureParams(), cell=cell)))
     captures = [a for s in steps for a in s.actions if isinstance(a, Capture) and is_ruler(a.meta)]
     assert len(captures) == len(frames)
+    # every frame re-centred: its step first aligns on the ruler at a named view, then each frame goes to
+    # its planned joints and from there to the re-centred pose (MoveAligned, planned = those joints)
+    for s in (s for s in steps if any(isinstance(a, Capture) and is_ruler(a.meta) for a in s.actions)):
+        views = {a.view for a in s.actions if isinstance(a, Align)}
+        assert views, s.name
+        assert "" not in views, s.name
+        last: Any = None
+        for a in s.actions:
+            if isinstance(a, Capture):
+                assert isinstance(last, MoveAligned), s.name
+            elif isinstance(a, MoveAligned):
+                assert isinstance(last, MoveJoints), s.name
+                assert last.target_deg == a.planned_deg, s.name
+            if not isinstance(a, Settle):
+                last = a
 
 
 def test_a_cell_without_rulers_and_a_session_naming_its_placements_take_no_ruler_frames(

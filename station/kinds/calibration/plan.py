@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from station.arm_route import quantised, split_move, travel
+from station.arm_route import quantised, split_move, travel, unwrap_near
 from station.kinds.calibration.analysis import analyse_calibration
 from station.kinds.calibration.gates import calibration_checks
 from station.kinds.calibration.params import CalibrationCell, CalibrationParams, calibration_cell_from_config
@@ -79,21 +79,6 @@ class Configuration:
     solution: int
     joints_deg: tuple[float, ...]
     camera_pose: FloatArray
-
-
-def unwrap_near(q: npt.ArrayLike, seed: npt.ArrayLike, limits: FloatArray) -> tuple[float, ...]:
-    """``q`` with each joint moved by whole turns to the equivalent angle nearest ``seed`` that stays within
-    its limits (inverse kinematics wraps angles to (-180, 180]: joint 6 at +180 and -180 is one pose)."""
-    out = []
-    qs, ss = np.asarray(q, dtype=float), np.asarray(seed, dtype=float)
-    for a, s, (lo, hi) in zip(qs, ss, limits, strict=True):
-        best = float(a)
-        for k in (-1, 1):
-            alt = float(a) + 360.0 * k
-            if lo <= alt <= hi and abs(alt - s) < abs(best - s):
-                best = alt
-        out.append(best)
-    return tuple(out)
 
 
 def _cell(ctx: PlanContext) -> CalibrationCell:
@@ -260,7 +245,12 @@ class CalibrationPlan:
             )
             previous, prev_config = c.joints_deg, c
         yield from ruler_steps(
-            params, self.ruler_configurations(params, cell), previous, step_limit, first=prev_config is None
+            params,
+            cell,
+            self.ruler_configurations(params, cell),
+            previous,
+            step_limit,
+            first=prev_config is None,
         )
 
     def _corrector(self, params: CalibrationParams, cell: CalibrationCell) -> Any:
