@@ -49,12 +49,15 @@ DRAWING_TOLERANCE_MM = (-0.0508, 0.0)
 """How far below and above the drawing's 1/32 in the grooves may be: +0/-0.002 in (mm)."""
 
 
-def scale_check_mode(plan: Plan) -> Mode:
-    """How the scale check applies to ``plan`` (its ``scale_check``; ``"skip"`` for a plan that drives no
-    camera)."""
+def scale_check_mode(plan: Plan, params: Any = None, devices: StationDevices | None = None) -> Mode:
+    """How the scale check applies to ``plan`` (its ``scale_check``: a mode, or a method of the session's
+    ``params`` and ``devices`` for a plan whose sessions differ, e.g. a calibration that identifies the
+    magnification itself along rulers; ``"skip"`` for a plan that drives no camera)."""
     if "camera" not in plan.needs:
         return "skip"
     mode = getattr(plan, "scale_check", "fail")
+    if callable(mode):
+        mode = mode(params, devices)
     for known in ("fail", "warn", "skip"):
         if mode == known:
             return known
@@ -91,9 +94,10 @@ class ScalePreflight:
         measure_params: MeasureParams,
         scale_calibration: Mapping[str, Any] | None,
         emit: Emit,
+        plan_params: Any = None,
     ) -> None:
         self._devices = devices
-        self._mode: Mode = "skip" if devices is None else scale_check_mode(plan)
+        self._mode: Mode = "skip" if devices is None else scale_check_mode(plan, plan_params, devices)
         self._params = measure_params
         self._scale_calibration = scale_calibration
         self._emit = emit

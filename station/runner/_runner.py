@@ -110,7 +110,9 @@ class SessionRunner:
         )
         self.error: str | None = None
         self.results: dict[str, Any] | None = None
-        self._scale = ScalePreflight(devices, plan, self.measure_params, scale_calibration, self.journal.emit)
+        self._scale = ScalePreflight(
+            devices, plan, self.measure_params, scale_calibration, self.journal.emit, plan_params=params
+        )
 
     # ------------------------------------------------------------------ observation
 

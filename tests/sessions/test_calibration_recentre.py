@@ -33,7 +33,7 @@ PARAMS = {
     "placements": [0],
     "turns_deg": [-20.0],
     "solutions": 1,
-    "settle_s": 0.05,
+    "settle_s": 0.005,  # ten times the twin's servo decay at its 1000x clock (test_calibration_sim.py)
     "rulers": [0],
     "ruler_positions_mm": [5.0, 245.0],
     "ruler_turns_deg": [0.0, 90.0, 180.0, 270.0],
@@ -46,7 +46,8 @@ PARAMS = {
 @pytest.fixture(scope="module")
 def session(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, SessionOutcome]:
     data = tmp_path_factory.mktemp("calibration-recentre")
-    return data, run_session("calibration", sim={"spec": SPEC}, params=PARAMS, data=data)
+    sim = {"spec": SPEC, "time_scale": 1000.0}
+    return data, run_session("calibration", sim=sim, params=PARAMS, data=data)
 
 
 @pytest.mark.timeout(300)

@@ -44,7 +44,7 @@ SMALL = {
     "placements": [0, 1, 2, 3, 4],
     "turns_deg": [-20.0, 160.0],
     "solutions": 2,
-    "settle_s": 0.05,
+    "settle_s": 0.005,  # ten times the twin's servo decay at its 1000x clock (test_calibration_sim.py)
     "rulers": [0, 1, 2],
     "ruler_positions_mm": [5.0, 95.0, 245.0],
     "ruler_turns_deg": [90.0, 270.0],
@@ -57,7 +57,7 @@ SMALL = {
 @pytest.fixture(scope="module")
 def session(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, SessionOutcome]:
     data = tmp_path_factory.mktemp("calibration-rulers")
-    outcome = run_session("calibration", sim={"spec": SPEC}, params=SMALL, data=data)
+    outcome = run_session("calibration", sim={"spec": SPEC, "time_scale": 1000.0}, params=SMALL, data=data)
     return data, outcome
 
 

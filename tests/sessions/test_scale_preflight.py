@@ -22,6 +22,7 @@ from station.kinds import get_plan
 from station.plans import parse_params
 from station.record import EventRow, Record
 from station.runner import SessionRunner, SessionState
+from station.scale_preflight import scale_check_mode
 
 
 @pytest.fixture
@@ -188,3 +189,26 @@ def test_off_the_crossing_the_first_capture_is_checked_and_fails_the_session(
     assert "station run camera-calibration" in str(runner.error)
     steps = [e["name"] for e in of(events, "step_started")]
     assert len(steps) <= 2, steps  # stopped at once: the route and the first step at most
+
+
+def test_a_calibration_along_the_rulers_only_warns_one_without_them_is_refused() -> None:
+    """A calibration that captures along the cell's rulers identifies the magnification itself (its gate
+    compares it with the grooves): the scale check only warns; one without rulers takes the camera model
+    as exact, and the check refuses it."""
+    plan = get_plan("calibration")
+    devices = build_sim_station(seed=3)
+    try:
+        assert devices.config.calibration is not None
+        assert devices.config.calibration.rulers  # the sim cell's three
+        along = parse_params(plan, {})  # every placement and, by default, every ruler
+        named = parse_params(plan, {"placements": [0, 1]})  # named placements: no rulers unless asked
+        asked = parse_params(plan, {"placements": [0, 1], "rulers": [1]})
+        none = parse_params(plan, {"rulers": []})
+        assert scale_check_mode(plan, along, devices) == "warn"
+        assert scale_check_mode(plan, asked, devices) == "warn"
+        assert scale_check_mode(plan, named, devices) == "fail"
+        assert scale_check_mode(plan, none, devices) == "fail"
+        assert scale_check_mode(get_plan("repeatability"), None, devices) == "fail"
+        assert scale_check_mode(get_plan("validation"), None, devices) == "warn"
+    finally:
+        devices.close_owned()

@@ -38,7 +38,12 @@ from station.arm_route import quantised, split_move, travel, unwrap_near
 from station.kinds.calibration.analysis import analyse_calibration
 from station.kinds.calibration.gates import calibration_checks
 from station.kinds.calibration.params import CalibrationCell, CalibrationParams, calibration_cell_from_config
-from station.kinds.calibration.ruler_plan import RulerConfiguration, ruler_configurations, ruler_steps
+from station.kinds.calibration.ruler_plan import (
+    RulerConfiguration,
+    ruler_configurations,
+    ruler_steps,
+    selected_rulers,
+)
 from station.kinematics import LOOK_DOWN, KinematicsError, rot_z, square_on, transform
 from station.plans import (
     Align,
@@ -96,6 +101,14 @@ class CalibrationPlan:
     name = "calibration"
     Params = CalibrationParams
     needs = frozenset({"robot", "camera", "distance_sensor"})
+
+    def scale_check(self, params: CalibrationParams, devices: Any) -> str:
+        """``station.scale_preflight``'s mode: a session along the cell's rulers identifies the camera's
+        magnification itself (and its gate compares it with the groove widths), so a camera model that
+        disagrees with the grooves only warns; without rulers the identification takes the model as
+        exact, and the disagreement refuses the session."""
+        cal = getattr(getattr(devices, "config", None), "calibration", None)
+        return "warn" if selected_rulers(params, len(cal.rulers) if cal is not None else 0) else "fail"
 
     def cell_from_config(
         self, config: Mapping[str, Any], measure_params: MeasureParams
