@@ -243,7 +243,8 @@ def test_a_calibration_session_runs_through_the_sessions_resource(served: Served
         doc = r.json()
         assert doc["kind"] == "calibration"
         running = wait_state(c, doc["id"], {"running"})
-        # 2 turns x the sim cell's 17 branches, and the frames along its three rulers (RulerPlan's layout)
-        assert running["progress"]["total"] == 2 * (1 + 4 * 4) + 204
+        # 2 turns x the sim cell's 17 branches, and the steps along its three rulers (RulerPlan's 204
+        # frames, one step for each position of each branch of a ruler: 41)
+        assert running["progress"]["total"] == 2 * (1 + 4 * 4) + 41
         assert c.post(f"/api/v1/sessions/{doc['id']}/actions", json={"action": "abort"}).status_code == 201
         assert wait_final(c, doc["id"])["state"] == "aborted"
