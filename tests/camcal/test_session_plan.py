@@ -112,3 +112,24 @@ def test_a_view_of_the_target_is_stored_but_not_groove_measured() -> None:
     assert not measured({"artifact": "target"})
     assert measured({"artifact": "ruler"})
     assert measured({})
+
+
+def test_a_resumed_session_goes_from_the_reference_pose_to_where_the_next_view_starts(
+    cell: CameraCell,
+) -> None:
+    from station.kinds.camera_calibration.plan import CAMERA_CALIBRATION
+    from station.plans import MoveJoints, PlanContext
+    from station.vision import MeasureParams
+
+    params = CameraCalibrationParams()
+    ctx = PlanContext(
+        measure_params=MeasureParams(), reference_joints_deg=cell.reference_joints_deg, cell=cell
+    )
+    steps = list(CAMERA_CALIBRATION.steps(params, ctx))
+    assert CAMERA_CALIBRATION.resume_prelude(params, ctx, steps[0]) == []
+    (prelude,) = CAMERA_CALIBRATION.resume_prelude(params, ctx, steps[12])
+    moves = [a.target_deg for a in prelude.actions if isinstance(a, MoveJoints)]
+    previous = [a.target_deg for a in steps[11].actions if isinstance(a, MoveJoints)][-1]
+    assert moves[-1] == previous  # where step 12's own moves start
+    path = np.vstack([np.asarray(cell.reference_joints_deg), np.asarray(moves)])
+    assert np.abs(np.diff(path, axis=0)).max() <= cell.max_step_deg

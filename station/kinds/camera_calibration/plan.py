@@ -31,7 +31,6 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from station.camcal import (
     CameraCalibrationError,
-    IntrinsicsCalibration,
     SensorReading,
     TargetDetection,
     ViewSpec,
@@ -39,8 +38,8 @@ from station.camcal import (
     detect_target,
     plan_views,
 )
-from station.camera_model import DIST_NAMES, CameraIntrinsics
-from station.kinds.camera_calibration.model_file import write_with_history
+from station.camera_model import CameraIntrinsics
+from station.kinds.camera_calibration.analysis import Bounds, calibration_results
 from station.kinematics import Kinematics, UnreachableError, transform
 from station.plans import (
     Capture,
@@ -54,7 +53,6 @@ from station.plans import (
     Settle,
     Step,
 )
-from station.plans._gates import Check, checks_json
 from station.plans._ruler import ARTIFACT_KEY
 
 #: the capture metadata's value (under ``"artifact"``) of a frame of the calibration target
@@ -313,7 +311,16 @@ class CameraCalibrationPlan:
     def resume_prelude(
         self, params: CameraCalibrationParams, ctx: PlanContext, next_step: Step
     ) -> list[Step]:
-        return []  # every view's step moves the arm to its own joints
+        """From the reference pose (where the session's route brought the arm) to the previous view's
+        joints, where ``next_step``'s moves start, within the robot's largest step."""
+        if next_step.index == 0:
+            return []
+        cell = self._cell(ctx)
+        assert cell.reference_joints_deg is not None  # the steps were planned from it
+        _, previous = view_joints(cell, params.views()[next_step.index - 1])
+        moves = moves_between(cell.reference_joints_deg, previous, cell.max_step_deg)
+        actions: tuple[Any, ...] = (SetSpeed(params.speed_pct), *(MoveJoints(q) for q in moves))
+        return [Step(-1, f"resume: to view {next_step.index - 1}", actions, {"role": "resume"})]
 
     def analyse(
         self, params: CameraCalibrationParams, ctx: PlanContext, captures: Sequence[CaptureResult]
@@ -369,90 +376,14 @@ class CameraCalibrationPlan:
                 f"the camera could not be calibrated from {len(detections)} of {len(taken)} views: {exc}"
                 + (f" (target not found: {'; '.join(missed[:3])})" if missed else "")
             ) from exc
-        return _results(cal, params, len(taken), missed, cell, Path(record.data_dir))
-
-
-def _estimate(model: CameraIntrinsics, name: str, value: float) -> dict[str, Any]:
-    sigma = model.sigma.get(name)
-    return {"value": float(value), "sigma": None if sigma is None else float(sigma)}
-
-
-def _results(
-    cal: IntrinsicsCalibration,
-    params: CameraCalibrationParams,
-    taken: int,
-    missed: Sequence[str],
-    cell: CameraCell,
-    data_dir: Path,
-) -> dict[str, Any]:
-    model = cal.intrinsics
-    problems = cal.problems(
-        focal_rel=params.focal_bound_pct / 100.0, principal_px=params.principal_bound_px, k=params.sigma_k
-    )
-    gates = [Check("intrinsics_bounds", not problems, None, 0.0, "fail", p) for p in problems] or [
-        Check(
-            "intrinsics_bounds",
-            True,
-            None,
-            0.0,
-            "fail",
-            f"focal lengths within {params.focal_bound_pct:g} %, principal point within "
-            f"{params.principal_bound_px:g} px ({params.sigma_k:g} sigma), re-projection < 0.1 px",
+        return calibration_results(
+            cal,
+            Bounds(params.focal_bound_pct, params.principal_bound_px, params.sigma_k),
+            taken=len(taken),
+            missed=missed,
+            camera_model=cell.camera_model,
+            data_dir=Path(record.data_dir),
         )
-    ]
-    gates += [Check("focal_agreement", False, None, 0.0, "warn", w) for w in cal.warnings()]
-    if missed:
-        gates.append(
-            Check(
-                "views_found",
-                False,
-                float(len(missed)),
-                0.0,
-                "warn",
-                f"the target was not found in {len(missed)} of {taken} views ({missed[0]}): check the "
-                "focus and the lighting",
-            )
-        )
-    passed = not problems
-    doc = model.to_dict()
-    written = write_with_history(model, cell.camera_model, data_dir) if passed else None
-    if written is not None and not written.configured:
-        gates.append(
-            Check(
-                "camera_model_configured",
-                False,
-                None,
-                0.0,
-                "warn",
-                f"the camera model was written to the data directory's {written.path.name} (the results' "
-                "camera_model_file): set [camera] camera_model to that path in the station configuration "
-                "for sessions to use it",
-            )
-        )
-    dist = [float(v) for v in np.ravel(model.dist_coeffs)]
-    assert model.image_size is not None
-    return {
-        "passed": passed,
-        "fx": _estimate(model, "fx", model.fx),
-        "fy": _estimate(model, "fy", model.fy),
-        "cx": _estimate(model, "cx", model.principal_point[0]),
-        "cy": _estimate(model, "cy", model.principal_point[1]),
-        "distortion": {n: _estimate(model, n, v) for n, v in zip(DIST_NAMES, dist, strict=False)},
-        "rms_px": float(cal.rms_px),
-        "image_size": list(model.image_size),
-        "views": len(cal.views),
-        "views_taken": taken,
-        "corners": cal.corners,
-        "focal_source": cal.focal.source,
-        "focal": cal.focal.to_dict(),
-        "camera_model": doc,
-        "camera_model_file": None if written is None else str(written.path),
-        "previous_model_file": None if written is None or written.previous is None else str(written.previous),
-        "problems": problems,
-        "warnings": cal.warnings(),
-        "view_diagnostics": [v.to_dict() for v in cal.views],
-        "checks": checks_json(gates),
-    }
 
 
 CAMERA_CALIBRATION = CameraCalibrationPlan()
