@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import pytest
 
-from tests.api.conftest import ServeFactory, Served, wait_final
+from tests.api.conftest import Served, ServeFactory, wait_final
 
 #: a small set of views (14) and bounds it meets (the defaults' 36 views: tests/sessions)
 SMALL = {
