@@ -274,6 +274,7 @@ def build_sim_station(
     sensor_mount: SensorMount | None = SIM_SENSOR_MOUNT,
     max_speed_pct: float = SIM_MAX_SPEED_PCT,
     table_artifact: Literal["cross", "ruler"] | None = None,
+    calibration_target: bool = False,
     **twin_options: Any,
 ) -> StationDevices:
     """Device factory (``station.sim``): the whole simulated station, built but not connected.
@@ -284,11 +285,14 @@ def build_sim_station(
     confirm). The Z distance sensor twin (a Keyence IL-065 behind a DL-RS1A) runs on its own pty at
     ``sensor_mount`` in the camera frame, read by the real driver (``sensor_mount=None``: no sensor).
     ``max_speed_pct``: the cell's speed cap (``[robot] safety``). ``table_artifact``: what the X-Y table
-    carries (``WorldSpec.table_artifact``; None: the spec's). ``truth`` is the :class:`SimStation`
-    (tests and benchmarks only).
+    carries (``WorldSpec.table_artifact``; None: the spec's); ``calibration_target``: the camera
+    calibration's target lies there instead (``WorldSpec.calibration_target``). ``truth`` is the
+    :class:`SimStation` (tests and benchmarks only).
     """
     if table_artifact is not None:
         spec = replace(spec or WorldSpec(), table_artifact=table_artifact)
+    if calibration_target:
+        spec = replace(spec or WorldSpec(), calibration_target=True)
     sim = SimStation(
         spec,
         seed=seed,

@@ -20,6 +20,7 @@ The keys are a contract (scripts read them): change them only with the CLI's and
 from __future__ import annotations
 
 import json
+import re
 from typing import Annotated, Any, Literal, TypeVar, Union
 
 from pydantic import BaseModel, ConfigDict, Field, create_model
@@ -119,7 +120,7 @@ M = TypeVar("M", bound=BaseModel)
 
 
 def _variant(base: type[M], kind: Kind, suffix: str) -> type[M]:
-    title = "".join(part.capitalize() for part in kind.name.split("_")) + suffix
+    title = "".join(part.capitalize() for part in re.split(r"[-_]", kind.name)) + suffix
     literal: Any = Literal[kind.name]  # a kind's name, known at run time
     results: Any = kind.results | NoResults
     return create_model(

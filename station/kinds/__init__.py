@@ -13,7 +13,15 @@ import json
 from collections.abc import Mapping
 from typing import Any
 
-from station.kinds import calibration, reanalyse, repeatability, selftest, sweep, validation
+from station.kinds import (
+    calibration,
+    camera_calibration,
+    reanalyse,
+    repeatability,
+    selftest,
+    sweep,
+    validation,
+)
 from station.plans import Plan, PlanError
 from station.plans._kind import Kind
 from station.plans._present import checks_summary
@@ -27,6 +35,7 @@ KINDS: Mapping[str, Kind] = {
         reanalyse.KIND,
         calibration.KIND,
         selftest.KIND,
+        camera_calibration.KIND,
     )
 }
 KIND_NAMES: tuple[str, ...] = tuple(KINDS)

@@ -28,6 +28,16 @@ def is_ruler(meta: Mapping[str, Any]) -> bool:
     return meta.get(ARTIFACT_KEY) == RULER
 
 
+#: The capture metadata's value (under :data:`ARTIFACT_KEY`) of a frame that is no groove artifact's (a
+#: camera calibration's view of its target): stored, never measured; its plan reads the image.
+NOT_MEASURED = ("target",)
+
+
+def measured(meta: Mapping[str, Any]) -> bool:
+    """Whether the runner measures a capture (its metadata): every frame but one of a calibration target."""
+    return meta.get(ARTIFACT_KEY) not in NOT_MEASURED
+
+
 def ruler_params(measure: MeasureParams, **changes: Any) -> RulerParams:
     """The ruler's measurement parameters for a session measuring with ``measure``: its camera model and
     bit depth carried over, the ruler's own defaults otherwise (``changes`` override them)."""
@@ -68,9 +78,11 @@ def capture_params(
 __all__ = [
     "ARTIFACT_KEY",
     "MAX_TILT_KEY",
+    "NOT_MEASURED",
     "RULER",
     "capture_params",
     "is_ruler",
+    "measured",
     "reference_px",
     "ruler_params",
 ]

@@ -17,7 +17,7 @@ from station import __version__
 from station.batch import measure_file
 from station.devices import Frame
 from station.plans import Step
-from station.plans._ruler import capture_params
+from station.plans._ruler import capture_params, measured
 from station.record import Record
 from station.runner._journal import Journal
 from station.runner._states import EARLY_FAILURE_CAPTURES, SessionError
@@ -64,6 +64,7 @@ class StorePipeline:
     on_step_done: Callable[[Step, float], dict[str, Any]]
     captures: int = 0
     measured_ok: int = 0
+    measured_tried: int = 0
     last_error: str | None = None
     _pool: ThreadPoolExecutor | None = None
     _futures: list[Future[None]] = field(default_factory=list)
@@ -126,9 +127,10 @@ class StorePipeline:
         self.record.finish_step(sid, step.index, data=data)
         progress = self.on_step_done(step, time.monotonic() - run.started_s)
         self.journal.emit("step_finished", {"index": step.index, "name": step.name, "progress": progress})
-        if self.captures >= EARLY_FAILURE_CAPTURES and self.measured_ok == 0:
+        if self.measured_tried >= EARLY_FAILURE_CAPTURES and self.measured_ok == 0:
             raise SessionError(
-                f"none of the first {self.captures} captures could be measured (last: {self.last_error}); "
+                f"none of the first {self.measured_tried} captures could be measured"
+                f" (last: {self.last_error}); "
                 "check that the artifact (the crossing, or the ruler) is in view and in focus, the lighting, "
                 "and the measurement parameters, then start again"
             )
@@ -155,6 +157,9 @@ class StorePipeline:
             self.journal.emit(
                 "image_captured", {"capture_id": cap.id, "path": cap.path, "step": step.index, "frame": fi}
             )
+            ids.append(cap.id)
+            if not measured(meta):
+                continue  # not a groove artifact (a calibration target's view): stored, its plan reads it
             result = measure_file(Path(self.record.data_dir) / cap.path, params).to_json()
             result["file"] = cap.path
             if self.scale_calibration is not None and result.get("ok") and params is self.measure_params:
@@ -162,6 +167,7 @@ class StorePipeline:
             self.record.add_measurement(sid, cap.id, result, params=params_doc, software=software)
             ok = bool(result.get("ok"))
             self.measured_ok += ok
+            self.measured_tried += 1
             if not ok:
                 self.last_error = result.get("error")
             self.journal.emit(
@@ -176,5 +182,4 @@ class StorePipeline:
                     "code": result.get("code"),
                 },
             )
-            ids.append(cap.id)
         return ids

@@ -1,0 +1,53 @@
+"""``POST /api/v1/sessions`` with kind ``camera-calibration`` on the simulated station: the typed results,
+and a bad parameter refused before anything moves.
+
+A service opens its simulated station once, so what its table carries is chosen when it starts (the
+``calibration_target`` sim option); ``station run --sim`` asks the plan (``sim_setup``) per session."""
+
+from __future__ import annotations
+
+import pytest
+
+from tests.api.conftest import Served, ServeFactory, wait_final
+
+#: a small set of views (14) and bounds it meets (the defaults' 36 views: tests/sessions)
+SMALL = {
+    "square_turns_deg": [-45, 45],
+    "azimuths": 4,
+    "tilted_turns_deg": [0],
+    "sensor_samples": 3,
+    "settle_s": 0.005,
+    "focal_bound_pct": 1.0,
+    "principal_bound_px": 5.0,
+}
+
+
+@pytest.mark.timeout(180)
+def test_a_camera_calibration_runs_through_the_api(make_served: ServeFactory) -> None:
+    served = make_served(calibration_target=True, time_scale=1000.0)
+    with served.client() as c:
+        r = c.post("/api/v1/sessions", json={"kind": "camera-calibration", "params": SMALL})
+        assert r.status_code == 201, r.text
+        final = wait_final(c, r.json()["id"])
+        assert final["state"] == "succeeded", final.get("error")
+        results = final["results"]
+        for name in ("fx", "fy", "cx", "cy"):
+            assert results[name]["sigma"] > 0
+        assert results["distortion"]["k1"]["sigma"] > 0
+        assert results["views"] == results["views_taken"] == 14
+        assert results["image_size"] == [640, 480]
+        assert results["camera_model_file"].endswith("camera-model.json")
+        table = c.get(f"/api/v1/sessions/{final['id']}/results", params={"format": "csv"})
+        assert table.status_code == 200
+        assert table.text.splitlines()[0] == "name,value,sigma"
+
+
+def test_a_bad_view_plan_is_refused_with_what_to_do(served: Served) -> None:
+    with served.client() as c:
+        r = c.post("/api/v1/sessions", json={"kind": "camera-calibration", "params": {"heights_mm": [0.0]}})
+        assert r.status_code == 422
+        assert "at least two different heights" in r.json()["detail"]
+        r = c.post("/api/v1/sessions", json={"kind": "camera-calibration", "params": {"tilts_deg": [40]}})
+        assert r.status_code == 422
+        assert "tilts_deg" in r.json()["detail"]
+        assert c.get("/api/v1/sessions").json()["total"] == 0  # nothing started
