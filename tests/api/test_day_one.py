@@ -9,8 +9,8 @@ engineer would do, with the page's routes:
 2. teach the table's artifact, and for each of the four bench artifacts jog there (joint jogs through
    the lift pose, the target from the drawing's position through the station's nominal model), jog the
    camera until the measured crossing is in view and centred, and teach it;
-3. back to the reference pose; calibrate the camera and self-test the controller (the places the lead
-   fills in after merging i23-kinds' branch: :func:`calibrate_camera`, :func:`self_test`);
+3. back to the reference pose; self-test the controller (:func:`self_test`; the camera's calibration is
+   not part of this day yet, see the test);
 4. validate, then calibrate the arm with the small fast configuration.
 
 The sim's truth enters the assertions only: the reference pose within 0.1 deg and the sensor mount within
@@ -196,12 +196,6 @@ def teach(c: httpx.Client, path: str) -> dict[str, Any]:
     return doc
 
 
-def calibrate_camera(c: httpx.Client) -> None:
-    """THE LEAD ADDS THIS AFTER MERGING i23-kinds: start a ``camera-calibration`` session (POST
-    /api/v1/sessions), wait for it, and assert the focal lengths within 0.05 % and the principal point
-    within 1 px of the sim camera's true intrinsics (truth in the assertions only)."""
-
-
 SELFTEST_CHECKS = ["directions", "world", "ready"]
 SELFTEST = {"kind": "selftest", "params": {"checks": SELFTEST_CHECKS}}
 """The halt check is left out: the twin's clock runs 100 times real time here, so the slow joint move it
@@ -298,7 +292,10 @@ def test_day_one_from_the_drawings_to_a_calibrated_arm(tmp_path: Path) -> None:
         # 3. home, then the camera and the controller
         r = c.post("/api/v1/station/robot/to-reference")
         assert r.status_code == 200, r.text
-        calibrate_camera(c)
+        # (the camera's calibration is not part of this day yet: the simulated service opens its cell once,
+        # with the crossed artifact on the table, and cannot put the calibration target there for one
+        # session; tests/sessions/test_camera_calibration_sim.py and tests/api/test_camera_calibration_api.py
+        # run it on a cell that carries the target)
         tested = self_test(c)
         # 4. validate and calibrate the arm: each carries the self-test it ran under
         validation = run(c, VALIDATION)
