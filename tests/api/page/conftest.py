@@ -42,6 +42,10 @@ def browser(chromium_process: Any) -> Iterator[Any]:
         context.close()
 
 
+SNAPSHOT = "/api/v1/camera/snapshot.png"
+"""The live view's picture of the camera between sessions (``api/static/js/live.js``)."""
+
+
 @dataclass
 class Visit:
     """A page and what went wrong in its browser context (the page and any it opened: a report)."""
@@ -65,11 +69,16 @@ class Visit:
         return self
 
     def _console(self, message: Any) -> None:
-        if message.type == "error":
-            self.console_errors.append(message.text)
+        if message.type != "error":
+            return
+        # Chromium logs every 4xx answer as "Failed to load resource", located at the resource's URL: the
+        # live view's busy snapshot is the answer described at ``busy``, any other is an error
+        if "status of 409" in message.text and SNAPSHOT in (message.location or {}).get("url", ""):
+            return
+        self.console_errors.append(message.text)
 
     def _response(self, response: Any) -> None:
-        if response.status == 409 and "/api/v1/camera/snapshot.png" in response.url:
+        if response.status == 409 and SNAPSHOT in response.url:
             self.busy.append(response.url)
         elif response.status >= 400:
             self.failed.append(f"{response.status} {response.url}")
