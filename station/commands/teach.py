@@ -25,7 +25,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from typing import Any
 
 from station import config
 from station.commands._parsing import SubParsers
@@ -57,46 +56,10 @@ def _devices(args: argparse.Namespace) -> config.StationDevices:
     return config.open_station(config.load_config(args.config))
 
 
-def _teach(devices: config.StationDevices, args: argparse.Namespace) -> tuple[dict[str, Any], Any]:
-    from station import teach
-
-    rig = teach.rig_for(devices)
-    if args.what == "reference":
-        ref = teach.teach_reference(rig)
-        return (
-            {"reference_joints_deg": list(ref.joints_deg), "crossing_mm": list(ref.crossing_mm)},
-            lambda doc: teach.set_reference(doc, ref.joints_deg),
-        )
-    if args.what == "artifact":
-        art = teach.teach_artifact(rig)
-        return (
-            {
-                "name": args.name,
-                "position_mm": list(art.position_mm),
-                "normal": list(art.normal),
-                "turn_deg": art.turn_deg,
-                "joints_deg": list(art.joints_deg),
-                "plane_rms_mm": art.plane_rms_mm,
-            },
-            lambda doc: teach.set_artifact(doc, args.name, art.position_mm, art.normal, art.turn_deg),
-        )
-    fit, pairs = teach.teach_sensor_mount(rig)
-    return (
-        {
-            "translation_z_mm": fit.translation_z_mm,
-            "slope": fit.slope,
-            "expected_slope": fit.expected_slope,
-            "rms_mm": fit.rms_mm,
-            "pairs_mm": [list(p) for p in pairs],
-        },
-        lambda doc: teach.set_sensor_mount_z(doc, fit.translation_z_mm),
-    )
-
-
 def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     if (args.what == "artifact") != (args.name is not None):
         parser.error("artifact needs its NAME; reference and sensor-mount take none")
-    from station.teach import TeachError, update_config
+    from station.teach import TeachError, rig_for, taught_values, update_config
 
     try:
         config.load_config(args.config)  # the file to write must be a valid configuration first
@@ -108,7 +71,7 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         for device in (devices.robot, devices.camera, devices.distance_sensor):
             if device is not None:
                 device.connect()
-        taught, edit = _teach(devices, args)
+        taught, edit = taught_values(rig_for(devices), args.what, args.name)
         done = update_config(args.config, edit)
     except (DeviceError, TeachError, config.ConfigurationError, ValueError) as exc:
         print(f"station teach: {exc}; nothing was written", file=sys.stderr)

@@ -30,6 +30,7 @@ from station.teach._procedure import (
     teach_reference,
     teach_sensor_mount,
 )
+from station.teach._values import taught_values
 from station.teach._writer import ConfigUpdate, set_artifact, set_reference, set_sensor_mount_z, update_config
 
 __all__ = [
@@ -56,6 +57,7 @@ __all__ = [
     "set_sensor_mount_z",
     "square_on",
     "square_turn_deg",
+    "taught_values",
     "teach_artifact",
     "teach_reference",
     "teach_sensor_mount",

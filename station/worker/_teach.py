@@ -98,51 +98,6 @@ def jog_arm(devices: StationDevices, request: Mapping[str, Any]) -> dict[str, An
     return result.to_dict()
 
 
-def _taught(
-    devices: StationDevices, what: str, name: str | None
-) -> tuple[dict[str, Any], Callable[..., list[str]]]:
-    from station import teach
-
-    rig = teach.rig_for(devices)
-    if what == "reference":
-        ref = teach.teach_reference(rig)
-        return (
-            {
-                "reference_joints_deg": list(ref.joints_deg),
-                "crossing_mm": list(ref.crossing_mm),
-                "center_px": list(ref.center_px),
-                "plane_rms_mm": ref.plane_rms_mm,
-            },
-            lambda doc: teach.set_reference(doc, ref.joints_deg),
-        )
-    if what == "artifact":
-        assert name is not None
-        art = teach.teach_artifact(rig)
-        return (
-            {
-                "name": name,
-                "position_mm": list(art.position_mm),
-                "normal": list(art.normal),
-                "turn_deg": art.turn_deg,
-                "joints_deg": list(art.joints_deg),
-                "center_px": list(art.center_px),
-                "plane_rms_mm": art.plane_rms_mm,
-            },
-            lambda doc: teach.set_artifact(doc, name, art.position_mm, art.normal, art.turn_deg),
-        )
-    fit, pairs = teach.teach_sensor_mount(rig)
-    return (
-        {
-            "translation_z_mm": fit.translation_z_mm,
-            "slope": fit.slope,
-            "expected_slope": fit.expected_slope,
-            "rms_mm": fit.rms_mm,
-            "pairs_mm": [list(p) for p in pairs],
-        },
-        lambda doc: teach.set_sensor_mount_z(doc, fit.translation_z_mm),
-    )
-
-
 def teach_on(devices: StationDevices, path: Path | None, what: str, name: str | None) -> dict[str, Any]:
     """Teach ``what`` (``reference``, ``artifact`` with its ``name``, ``sensor-mount``) from the devices
     (connected here, closed after), write it into the configuration at ``path`` (comments kept, the old
@@ -150,7 +105,7 @@ def teach_on(devices: StationDevices, path: Path | None, what: str, name: str | 
     "changes"}`` (``config`` and ``backup``: the files' names, in the configuration's folder).
     TeachError, ConfigurationError, StopLatchedError, MotionRejectedError: nothing was written;
     NotAvailableError (nothing moved) without a configuration file (``path`` None)."""
-    from station.teach import TeachError, update_config
+    from station.teach import TeachError, rig_for, taught_values, update_config
 
     if what not in TEACH_WHATS:
         raise TeachError(f"teach one of {', '.join(TEACH_WHATS)}, not {what!r}")
@@ -167,7 +122,7 @@ def teach_on(devices: StationDevices, path: Path | None, what: str, name: str | 
                 "this service has no configuration file to teach into: start it with station serve"
                 " --config station.toml (a simulated station's taught values come from its truth)"
             )
-        taught, edit = _taught(devices, what, name)
+        taught, edit = taught_values(rig_for(devices), what, name)
         done = update_config(path, edit)
     finally:
         for device in reversed(opened):
