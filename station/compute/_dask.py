@@ -12,8 +12,9 @@ or of a ``LocalCluster`` started here (``local:N``).
 * **Faults**: a worker that dies has its tasks run again elsewhere by the scheduler (same frames, same
   software: the same numbers). A batch that kills workers repeatedly (the scheduler's
   ``allowed-failures``) ends in ``KilledWorker``: each of its frames is then measured alone, and a
-  frame that kills workers alone too gets a ``worker_died`` error. A scheduler that goes away fails the
-  run with ClusterUnavailableError; cancelling (Ctrl-C, an abort) cancels the tasks on the cluster.
+  frame that kills workers alone, with no other suspect in flight, gets a ``worker_died`` error. A
+  scheduler that goes away fails the run with ClusterUnavailableError; cancelling (Ctrl-C, an abort)
+  cancels the tasks on the cluster.
 """
 
 from __future__ import annotations
@@ -228,10 +229,7 @@ class DaskBackend:
                 if todo and set(worker_names(client)) - set(self._checked):
                     admit(client, samples, self._checked)  # a worker joined: check it before it gets work
         finally:
-            pending = [f for _, _, f in window if f is not None]
-            if client.status == "running":
-                with contextlib.suppress(Exception):
-                    client.cancel([*pending, params_future], force=True)
+            self._cancel(client, [*(f for _, _, f in window if f is not None), params_future])
 
     def _submit(
         self,
@@ -291,37 +289,52 @@ class DaskBackend:
     def _alone(
         self, client: Any, items: list[Item], params_future: Any, limits: ImageLimits | None, check: Cancelled
     ) -> list[FileResult]:
-        """Each frame of a killing batch as a task of its own; one that kills workers again is
-        ``worker_died``."""
+        """Each frame of a killing batch as a task of its own; a frame whose task is killed again is
+        tried once more with nothing else of this run's suspects in flight, and one that kills workers
+        then too is ``worker_died``.
+
+        The scheduler counts a death against every task *assigned* to the dead worker, queued ones too
+        (``WorkerState.processing``): an innocent frame queued behind the killer on the same worker
+        reaches ``allowed-failures`` with it. Tried by itself, it is measured.
+        """
         from distributed import KilledWorker
 
-        samples = {} if self.ship_images else samples_of(items)
-        futures = [
-            client.submit(
-                run_batch,
-                [item],
-                params_future,
-                limits,
-                self._measure_one,
-                samples,
-                pure=False,
-                key=_key("one"),
-            )
-            for item in items
-        ]
-        out = []
+        out: list[FileResult | None] = []
+        suspects: list[int] = []
+        futures = [self._submit_one(client, item, params_future, limits) for item in items]
         try:
             for item, future in zip(items, futures, strict=True):
                 try:
                     out.extend(self._gather(client, future, check))
-                except KilledWorker as exc:
-                    log.warning("%s killed its workers again: it is that frame's error", item_name(item))
-                    out.append(worker_died(item_name(item), type(exc).__name__))
+                except KilledWorker:
+                    log.warning("%s was on a worker that died again: trying it by itself", item_name(item))
+                    suspects.append(len(out))
+                    out.append(None)
         finally:
-            if client.status == "running":
-                with contextlib.suppress(Exception):
-                    client.cancel(futures, force=True)
-        return out
+            self._cancel(client, futures)
+        for index in suspects:
+            item = items[index]
+            future = self._submit_one(client, item, params_future, limits)
+            try:
+                (out[index],) = self._gather(client, future, check)
+            except KilledWorker as exc:
+                log.warning("%s killed its workers by itself: it is that frame's error", item_name(item))
+                out[index] = worker_died(item_name(item), type(exc).__name__)
+            finally:
+                self._cancel(client, [future])
+        return [r for r in out if r is not None]
+
+    def _submit_one(self, client: Any, item: Item, params_future: Any, limits: ImageLimits | None) -> Any:
+        samples = {} if self.ship_images else samples_of([item])
+        return client.submit(
+            run_batch, [item], params_future, limits, self._measure_one, samples, pure=False, key=_key("one")
+        )
+
+    @staticmethod
+    def _cancel(client: Any, futures: list[Any]) -> None:
+        if client.status == "running":
+            with contextlib.suppress(Exception):
+                client.cancel(futures, force=True)
 
     def _gather(self, client: Any, future: Any, check: Cancelled) -> list[FileResult]:
         """The batch's results, polling ``check`` before and while waiting, and the scheduler's connection

@@ -152,6 +152,26 @@ def test_a_frame_that_kills_its_workers_is_its_worker_died_error(
     assert lines(results[:10] + results[11:]) == reference[:16]
 
 
+def test_frames_queued_behind_a_killer_on_its_only_worker_are_measured(
+    two: Cluster, frames: list[Path], reference: list[str], tmp_path: Path
+) -> None:
+    # one worker: the scheduler queues the next frame on it behind the killer, and counts each death
+    # against both; only the killer may be blamed
+    poison = tmp_path / "poison.png"
+    poison.write_bytes(frames[0].read_bytes())
+    items = [frames[0], poison, *frames[1:4]]
+    two.stop_worker("beta")
+    backend = DaskBackend(two.address, measure_one=dies_on_poison)
+    try:
+        results = list(backend.measure(items, PARAMS))
+    finally:
+        backend.close()
+        two.start_worker("beta")
+    assert [r.code for r in results].count("worker_died") == 1
+    assert results[1].code == "worker_died"
+    assert lines(results[:1] + results[2:]) == reference[:4]
+
+
 def test_cancelling_cancels_the_clusters_tasks(
     two: Cluster, frames: list[Path], reference: list[str]
 ) -> None:
