@@ -42,8 +42,9 @@ layers: setup
 # apart from the rest: both suffer when the machine is loaded by the parallel run. `--dist loadfile` keeps
 # a test file on one worker, so that its module fixtures (a simulated calibration session, shared
 # services, rendered image sets) are built once, not once per worker that happens to run one of its tests.
+# `--durations` lists the slowest tests (set-up included) at the end of the run: where the suite's time goes.
 pytest: setup
-	$(BIN)/python -m pytest -n 2 --dist loadfile -q -m "not gige and not cluster"
+	$(BIN)/python -m pytest -n 2 --dist loadfile -q -m "not gige and not cluster" --durations=30
 	$(BIN)/python -m pytest -q -m gige
 	$(BIN)/python -m pytest -q -m cluster
 
