@@ -74,7 +74,13 @@ class TeachRig:
     measure_params: MeasureParams = field(default_factory=MeasureParams)
 
     def joints(self) -> tuple[float, ...]:
+        """The commanded joints (deg): where the next move starts from."""
         return tuple(float(v) for v in self.robot.where().commanded_joints_deg)
+
+    def attained(self) -> tuple[float, ...]:
+        """The encoders' joints (deg): what a reading is taken at (the controller's set-point misses it by
+        the joints' backlash and noise, which the encoders see), as the calibration's observations are."""
+        return tuple(float(v) for v in self.robot.where().joints_deg)
 
     def move(self, target: Sequence[float]) -> None:
         """A checked move (limits, step, keep-out along the path) at the jog speed."""
@@ -110,7 +116,9 @@ class TeachRig:
                 shift = (a * PLANE_SPREAD_MM - bx, b * PLANE_SPREAD_MM - by, 0.0)
                 q = camera_offset_target(start, self.nominal, shift)
                 self.move(q)
-                points.append(sensor_point(self.nominal.forward(q), self.sensor_mount, self.reading_mm()))
+                points.append(
+                    sensor_point(self.nominal.forward(self.attained()), self.sensor_mount, self.reading_mm())
+                )
         finally:
             self.move(start)
         return fit_plane(points)
@@ -152,7 +160,7 @@ def _focus(rig: TeachRig, *, square: bool) -> None:
 
 def _crossing_mm(rig: TeachRig, plane: Plane) -> tuple[FloatArray, tuple[float, float], float]:
     center, rotation = rig.crossing()
-    point = crossing_on_plane(rig.nominal.forward(rig.joints()), center, rig.intrinsics, plane)
+    point = crossing_on_plane(rig.nominal.forward(rig.attained()), center, rig.intrinsics, plane)
     return point, center, rotation
 
 
@@ -189,7 +197,7 @@ def teach_artifact(rig: TeachRig, *, rounds: int = 2) -> TaughtArtifact:
         rig.move(tuple(round(float(v), 3) for v in target))
     plane = rig.plane()
     point, center, rotation = _crossing_mm(rig, plane)
-    pose = rig.nominal.forward(rig.joints())
+    pose = rig.nominal.forward(rig.attained())
     turn = square_turn_deg(pose, center, rotation, rig.intrinsics, plane)
     n = plane.normal
     return TaughtArtifact(
