@@ -20,6 +20,7 @@ turns come right (rulers in the calibration fix the absolute position). Those va
 calibrated arm's compensated moves (``move-camera --calibration``) work with; a session that plans
 through the nominal model reads them as positions to re-centre from.
 """
+
 from station.teach._maths import (
     LOOK_DOWN,
     Plane,
