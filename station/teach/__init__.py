@@ -10,15 +10,14 @@ through the calibrated arm (``station teach ... --calibration FILE``, or the API
 ``{"calibration_session": id}``). Through the nominal model the arm's orientation error (its joints'
 zero and twist errors, 0.10-0.15 deg on the simulated arm) is in every taught turn and normal; through
 the calibrated arm it is gone (within 0.07 deg on the simulated cells, the measurements' own floor
-0.04 deg). What re-taught values mean: they are in the calibrated model's base frame, which its
-artifacts define (its base row, ``alpha0``, ``a0``, ``d1``, ``theta1_offset``, stays nominal:
-``station/calibration/CALIBRATION.md``). That frame is the true one moved by the arm's base-row errors
-(0.05 deg and 0.3 mm on the simulated arm) and by what the fit leaves weak: a calibration from crossings
-alone leaves the camera's tilt on the flange and its distance along the optical axis loose, so the
-re-taught crossings' positions can move by millimetres from the first teach's while their normals and
-turns come right (rulers in the calibration fix the absolute position). Those values are what the
-calibrated arm's compensated moves (``move-camera --calibration``) work with; a session that plans
-through the nominal model reads them as positions to re-centre from.
+0.04 deg). A crossing's position is always read through the nominal model, at the same pose and from
+the same readings: it is what every plan moves through, and a calibration from crossings alone does not
+hold it (it leaves the camera's tilt on the flange and its distance along the optical axis loose: read
+through the calibrated arm the positions moved 2-3 mm on the simulated cells, through the nominal model
+they stay within 0.1 mm). The re-taught normals and turns are in the calibrated model's base frame, which
+its artifacts define (its base row, ``alpha0``, ``a0``, ``d1``, ``theta1_offset``, stays nominal:
+``station/calibration/CALIBRATION.md``): the true frame moved by the arm's base-row errors (0.05 deg on
+the simulated arm).
 """
 
 from station.teach._maths import (

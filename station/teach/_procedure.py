@@ -120,23 +120,38 @@ class TeachRig:
         return (float(m.center_px[0]), float(m.center_px[1])), float(m.rotation_deg)
 
     def plane(self) -> Plane:
-        """The artifact's plane from sensor readings at four points around the one the camera looks at
-        (the camera shifted in its own x and y so that the beam lands there; the arm comes back)."""
+        """The artifact's plane through the rig's model (``plane_samples``)."""
+        return self.plane_samples().plane(self.kinematics)
+
+    def plane_samples(self) -> PlaneSamples:
+        """Sensor readings at four points around the one the camera looks at (the camera shifted in its
+        own x and y so that the beam lands there; the arm comes back), with the encoders' joints of each."""
         if self.sensor_mount is None:
             raise TeachError("teaching a plane needs the distance sensor and its mount")
         start = self.joints()
         bx, by = float(self.sensor_mount[0, 3]), float(self.sensor_mount[1, 3])
-        points = []
+        samples = []
         try:
             for a, b in ((1, 1), (1, -1), (-1, -1), (-1, 1)):
                 shift = (a * PLANE_SPREAD_MM - bx, b * PLANE_SPREAD_MM - by, 0.0)
                 q = camera_offset_target(start, self.kinematics, shift)
                 self.move(q)
-                pose = self.kinematics.forward(self.attained())
-                points.append(sensor_point(pose, self.sensor_mount, self.reading_mm()))
+                samples.append((self.attained(), self.reading_mm()))
         finally:
             self.move(start)
-        return fit_plane(points)
+        return PlaneSamples(self.sensor_mount, tuple(samples))
+
+
+@dataclass(frozen=True)
+class PlaneSamples:
+    """The sensor's readings of a plane (mm), each with the encoders' joints it was read at (deg): the
+    plane through any arm model (the sensor's mount in the camera frame)."""
+
+    sensor_mount: FloatArray
+    samples: tuple[tuple[tuple[float, ...], float], ...]
+
+    def plane(self, kinematics: Kinematics) -> Plane:
+        return fit_plane([sensor_point(kinematics.forward(q), self.sensor_mount, r) for q, r in self.samples])
 
 
 @dataclass(frozen=True)
@@ -193,10 +208,17 @@ def teach_reference(rig: TeachRig, *, rounds: int = 2) -> TaughtReference:
                 for v in pose_to_see(rig.joints(), rig.kinematics, point, rig.working_distance_mm)
             )
         )
-    plane = rig.plane()
-    point, center, _ = _crossing_mm(rig, plane)
+    samples = rig.plane_samples()
+    center, _ = rig.crossing()
+    # the crossing as the nominal model reads it, calibrated or not (see ``teach_artifact``)
+    point = crossing_on_plane(
+        rig.nominal.forward(rig.attained()), center, rig.intrinsics, samples.plane(rig.nominal)
+    )
     return TaughtReference(
-        rig.joints(), center, (float(point[0]), float(point[1]), float(point[2])), plane.rms_mm
+        rig.joints(),
+        center,
+        (float(point[0]), float(point[1]), float(point[2])),
+        samples.plane(rig.kinematics).rms_mm,
     )
 
 
@@ -212,11 +234,16 @@ def teach_artifact(rig: TeachRig, *, rounds: int = 2) -> TaughtArtifact:
             rig.joints(), rig.kinematics, point, rig.working_distance_mm, normal=plane.normal
         )
         rig.move(tuple(round(float(v), 3) for v in target))
-    plane = rig.plane()
-    point, center, rotation = _crossing_mm(rig, plane)
-    pose = rig.kinematics.forward(rig.attained())
-    turn = square_turn_deg(pose, center, rotation, rig.intrinsics, plane)
+    samples = rig.plane_samples()
+    plane = samples.plane(rig.kinematics)
+    center, rotation = rig.crossing()
+    at = rig.attained()
+    turn = square_turn_deg(rig.kinematics.forward(at), center, rotation, rig.intrinsics, plane)
     n = plane.normal
+    # The crossing's position stays the nominal model's reading at the same pose, calibrated or not: the
+    # frame every plan moves in, and one that a calibration from crossings alone does not hold (it
+    # leaves the camera's distance along its axis loose by millimetres); the orientation is the model's.
+    point = crossing_on_plane(rig.nominal.forward(at), center, rig.intrinsics, samples.plane(rig.nominal))
     return TaughtArtifact(
         (float(point[0]), float(point[1]), float(point[2])),
         (float(n[0]), float(n[1]), float(n[2])),

@@ -17,8 +17,9 @@ def taught_values(
 ) -> tuple[dict[str, Any], Callable[..., list[str]]]:
     """What ``station teach`` and the API's teach routes compute with ``rig`` (``what``: reference,
     artifact (``name``) or sensor-mount): the taught values as JSON (``model``: the arm model they were
-    read through, ``TeachRig.model_source``), and the edit that writes them into the configuration
-    document (:func:`station.teach.update_config`; the model in the written line's comment)."""
+    read through, ``TeachRig.model_source``; an artifact's position is always the nominal model's), and
+    the edit that writes them into the configuration document (:func:`station.teach.update_config`; the
+    model in the written line's comment)."""
     source = rig.model_source
     through = "the nominal arm model" if rig.model is None else rig.model.describe()
     if what == "reference":
@@ -36,6 +37,8 @@ def taught_values(
     if what == "artifact":
         assert name is not None
         art = teach_artifact(rig)
+        # the crossing's position is the nominal model's reading whatever the model (``teach_artifact``)
+        artifact_through = through if rig.model is None else f"{through} (position: the nominal model)"
         return (
             {
                 "name": name,
@@ -47,7 +50,7 @@ def taught_values(
                 "plane_rms_mm": art.plane_rms_mm,
                 "model": source,
             },
-            lambda doc: set_artifact(doc, name, art.position_mm, art.normal, art.turn_deg, through),
+            lambda doc: set_artifact(doc, name, art.position_mm, art.normal, art.turn_deg, artifact_through),
         )
     fit, pairs = teach_sensor_mount(rig)
     return (
