@@ -35,7 +35,7 @@ from station.record import (
 )
 from station.runner import PreflightError, SessionError
 from station.scale_calibration import NothingToRevertError, ScaleCalibrationError
-from station.teach import TeachError
+from station.teach import CalibrationRefusedError, CalibrationSessionInvalidError, TeachError
 
 log = logging.getLogger(__name__)
 
@@ -68,6 +68,8 @@ STATUS_OF: tuple[tuple[type[Exception], int, str], ...] = (
     (RemoteAcknowledgementError, 403, "remote_acknowledgement"),
     (StopLatchedError, 409, "stop_latched"),
     (MotionRejectedError, 422, "motion_rejected"),
+    (CalibrationSessionInvalidError, 422, "calibration_session_invalid"),
+    (CalibrationRefusedError, 409, "calibration_refused"),
     (TeachError, 422, "teach_failed"),
     (DeviceError, 502, "device_error"),
 )

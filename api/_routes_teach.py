@@ -21,7 +21,7 @@ from fastapi.concurrency import run_in_threadpool
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from api._auth import motion_access
-from api._deps import service_of
+from api._deps import SESSION_ID, service_of
 from api._openapi import problems
 from api._service import StationService
 from station.jog import MAX_CAMERA_JOG_DEG, MAX_CAMERA_JOG_MM, MAX_JOINT_JOG_DEG
@@ -92,12 +92,26 @@ class JogModel(BaseModel):
     world_mm_deg: list[float] | None
 
 
+class TeachBody(BaseModel):
+    """What a teach reads through: ``calibration_session``, a calibration session of this station that
+    succeeded with its checks passed, with the controller the arm has now (its calibrated arm); no body
+    (or no key): the nominal model."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    calibration_session: str | None = Field(
+        None, pattern=SESSION_ID, description="a calibration session's id (or a unique prefix of 4+)"
+    )
+
+
 class TaughtModel(BaseModel):
     """What a teach wrote: ``what`` (``reference``, ``artifact``, ``sensor-mount``), ``taught`` (the
     values: ``reference_joints_deg`` and ``crossing_mm``; an artifact's ``name``, ``position_mm``,
     ``normal``, ``turn_deg``, ``joints_deg``; the sensor mount's ``translation_z_mm``, ``slope``,
-    ``rms_mm``, ``pairs_mm``), ``config`` (the configuration file's name), ``backup`` (the old file's
-    copy beside it) and ``changes`` (``key = value`` lines)."""
+    ``rms_mm``, ``pairs_mm``; every one's ``model``: the arm model they were read through, ``{"model":
+    "nominal"}`` or ``{"model": "calibrated", "calibration_session", "created"}``), ``config`` (the
+    configuration file's name), ``backup`` (the old file's copy beside it) and ``changes`` (``key =
+    value`` lines)."""
 
     what: Literal["reference", "artifact", "sensor-mount"]
     taught: dict[str, Any]
@@ -154,15 +168,23 @@ async def jog(request: Request, body: JogRequest) -> JogModel:
 
 _TEACH_422 = (
     "the readings cannot give the value (``teach_failed``: no crossing in view, out of the sensor's"
-    " range ...), a move the robot's checks refuse (``motion_rejected``), or a configuration that cannot"
-    " take it (``configuration_error``); nothing was written"
+    " range ...), a move the robot's checks refuse (``motion_rejected``), a configuration that cannot"
+    " take it (``configuration_error``), or a ``calibration_session`` that is not a calibration session"
+    " on record (``calibration_session_invalid``); nothing was written"
 )
-_TEACH_409 = _BUSY_409 + "; or the service has no configuration file to write (``not_available``)"
+_TEACH_409 = (
+    _BUSY_409 + "; the service has no configuration file to write (``not_available``); or the"
+    " ``calibration_session`` cannot be taught through (``calibration_refused``: it did not succeed, a"
+    " check failed, it ran on another station or controller, or with another camera mounting)"
+)
 
 
-async def _teach(request: Request, what: str, name: str | None) -> TaughtModel:
+async def _teach(request: Request, what: str, name: str | None, body: TeachBody | None) -> TaughtModel:
     service = service_of(request)
-    done = await run_in_threadpool(_after_motion, service, "teach", what, name, timeout_s=TEACH_TIMEOUT_S)
+    session = None if body is None else body.calibration_session
+    done = await run_in_threadpool(
+        _after_motion, service, "teach", what, name, session, timeout_s=TEACH_TIMEOUT_S
+    )
     return TaughtModel.model_validate(done)
 
 
@@ -172,11 +194,12 @@ async def _teach(request: Request, what: str, name: str | None) -> TaughtModel:
     dependencies=[Depends(motion_access)],
     responses=problems(401, 502, 503, s403=_MOTION_403, s409=_TEACH_409, s422=_TEACH_422),
 )
-async def teach_reference(request: Request) -> TaughtModel:
+async def teach_reference(request: Request, body: TeachBody | None = None) -> TaughtModel:
     """Teach the reference pose: with the table's crossing in view (jog there first), the camera is
     focused by the distance sensor and moved until the crossing is on the principal point at the working
-    distance, its orientation kept; the pose becomes ``[robot] reference_joints_deg``."""
-    return await _teach(request, "reference", None)
+    distance, its orientation kept; the pose becomes ``[robot] reference_joints_deg``. Through the
+    calibrated arm of ``{"calibration_session": id}`` when given."""
+    return await _teach(request, "reference", None, body)
 
 
 @router.post(
@@ -190,11 +213,14 @@ async def teach_artifact(
     name: Annotated[
         str, Path(pattern=NAME_PATTERN, description="the artifact's name (1-40 of A-Z a-z 0-9 _ . -)")
     ],
+    body: TeachBody | None = None,
 ) -> TaughtModel:
     """Teach artifact ``name`` (with its crossing in view): the camera squared to its plane (read by the
     sensor) and centred at the working distance; its crossing, normal and square turn go into
-    ``[calibration]`` (in place of ``name``, or added)."""
-    return await _teach(request, "artifact", name)
+    ``[calibration]`` (in place of ``name``, or added). After the arm's calibration, teach it again
+    through the calibrated arm (``{"calibration_session": id}``): the normal and turn then lose the
+    arm's orientation error (in the calibrated arm's base frame, which its artifacts define)."""
+    return await _teach(request, "artifact", name, body)
 
 
 @router.post(
@@ -203,8 +229,9 @@ async def teach_artifact(
     dependencies=[Depends(motion_access)],
     responses=problems(401, 502, 503, s403=_MOTION_403, s409=_TEACH_409, s422=_TEACH_422),
 )
-async def teach_sensor_mount(request: Request) -> TaughtModel:
+async def teach_sensor_mount(request: Request, body: TeachBody | None = None) -> TaughtModel:
     """Teach the distance sensor's mount (the camera square to a flat surface and in focus, e.g. at the
     reference pose): the camera moved along its optical axis over known heights, the sensor read at
-    each; its offset along the axis goes into ``[distance_sensor] mount``."""
-    return await _teach(request, "sensor-mount", None)
+    each; its offset along the axis goes into ``[distance_sensor] mount``. Through the calibrated arm
+    of ``{"calibration_session": id}`` when given."""
+    return await _teach(request, "sensor-mount", None, body)

@@ -15,6 +15,12 @@ sensor; ``--sim``: a fresh simulated station, whose arm starts at its reference 
   camera moved along its optical axis over known heights, the sensor read at each; the mount's offset
   along the axis goes into ``[distance_sensor] mount``.
 
+``--calibration FILE`` (the calibrated parameter set ``station calibrate SESSION --out FILE`` writes, as
+``station robot move-camera`` takes it): teach through the calibrated arm instead of the nominal model;
+after the arm's calibration, teach the artifacts again so: their normals and turns lose the arm's
+orientation error (``station.teach``'s notes say in which frame they then are). The written line's
+comment and ``taught.model`` say which model the value was read through.
+
 Every motion is checked by the robot (limits, keep-out along the path, speed cap) before it is sent, at
 the jog speed. Exit 0 when written, 1 when the devices or the readings refuse (nothing written), 2 for
 usage errors. ``--json``: one object (``what``, ``taught``, ``config``, ``backup``, ``changes``).
@@ -45,6 +51,11 @@ def register(sub: SubParsers) -> None:
         "name", nargs="?", default=None, metavar="NAME", help="the artifact's name (artifact only)"
     )
     p.add_argument("--config", required=True, metavar="FILE", help="the station configuration to teach")
+    p.add_argument(
+        "--calibration",
+        metavar="FILE",
+        help="read through this calibrated arm (station calibrate SESSION --out FILE), not the nominal model",
+    )
     p.add_argument("--sim", action="store_true", help="read a fresh simulated station instead of the devices")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=lambda args: run(p, args))
@@ -59,19 +70,25 @@ def _devices(args: argparse.Namespace) -> config.StationDevices:
 def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     if (args.what == "artifact") != (args.name is not None):
         parser.error("artifact needs its NAME; reference and sensor-mount take none")
-    from station.teach import TeachError, rig_for, taught_values, update_config
+    from station.teach import TeachError, model_from_file, rig_for, taught_values, update_config
 
     try:
-        config.load_config(args.config)  # the file to write must be a valid configuration first
+        station_config = config.load_config(args.config)  # the file to write must be valid first
     except config.ConfigurationError as exc:
         parser.error(str(exc))
+    model = None
+    if args.calibration is not None:
+        try:  # before anything moves: a file that cannot be taught through is a usage error
+            model = model_from_file(args.calibration, station_config.camera_mount().matrix())
+        except TeachError as exc:
+            parser.error(f"--calibration {args.calibration}: {exc}")
     devices: config.StationDevices | None = None
     try:
         devices = _devices(args)
         for device in (devices.robot, devices.camera, devices.distance_sensor):
             if device is not None:
                 device.connect()
-        taught, edit = taught_values(rig_for(devices), args.what, args.name)
+        taught, edit = taught_values(rig_for(devices, model=model), args.what, args.name)
         done = update_config(args.config, edit)
     except (DeviceError, TeachError, config.ConfigurationError, ValueError) as exc:
         print(f"station teach: {exc}; nothing was written", file=sys.stderr)

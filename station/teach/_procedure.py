@@ -1,10 +1,11 @@
 """Teaching with the devices: the readings a taught value needs, taken from the robot, the camera and the
 distance sensor directly (as the manual tools do), and the value computed (``_maths``).
 
-Every motion is a small move through the nominal model (``station.jog``), checked on the robot (limits,
-step, keep-out along the path, speed cap) before it is sent, at the jog speed. The arm is left where
-the taught value was read: at the reference pose, at the square pose over the artifact, or back where
-the sensor mount's heights started.
+Every motion is a small move (``station.jog``) through the model teaching reads through (the nominal
+one, or a calibrated arm: ``_model``), checked on the robot (limits, step, keep-out along the path,
+speed cap) before it is sent, at the jog speed. Readings are taken at the encoders' joints. The arm is
+left where the taught value was read: at the reference pose, at the square pose over the artifact, or
+back where the sensor mount's heights started.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -32,6 +34,7 @@ from station.teach._maths import (
     sensor_point,
     square_turn_deg,
 )
+from station.teach._model import TeachModel
 from station.vision import MeasureParams, measure
 
 __all__ = [
@@ -60,7 +63,8 @@ point the camera looks at (off both grooves, around the crossing: the plane is n
 class TeachRig:
     """What teaching reads and moves: the devices (connected), the nominal model (``nominal``: the arm's
     nominal kinematics with the camera's mounting as its tool), the camera model, the sensor's mount in
-    the camera frame (4x4), the working distance, and the jog speed."""
+    the camera frame (4x4), the working distance, the jog speed, and the model teaching reads through
+    when it is not the nominal one (``model``: a calibrated arm, ``station.teach.TeachModel``)."""
 
     robot: Robot
     camera: Camera
@@ -72,9 +76,27 @@ class TeachRig:
     speed_pct: float = 10.0
     readings: int = 5
     measure_params: MeasureParams = field(default_factory=MeasureParams)
+    model: TeachModel | None = None
+
+    @property
+    def kinematics(self) -> Kinematics:
+        """What teaching reads and moves through: ``model``'s (a calibrated arm) when given, else the
+        nominal model."""
+        return self.nominal if self.model is None else self.model.kinematics
+
+    @property
+    def model_source(self) -> dict[str, Any]:
+        """Which model teaching reads through (``TeachModel.source``): recorded with the taught value."""
+        return {"model": "nominal"} if self.model is None else dict(self.model.source)
 
     def joints(self) -> tuple[float, ...]:
+        """The commanded joints (deg): where the next move starts from."""
         return tuple(float(v) for v in self.robot.where().commanded_joints_deg)
+
+    def attained(self) -> tuple[float, ...]:
+        """The encoders' joints (deg): what a reading is taken at (the controller's set-point misses it by
+        the joints' backlash and noise, which the encoders see), as the calibration's observations are."""
+        return tuple(float(v) for v in self.robot.where().joints_deg)
 
     def move(self, target: Sequence[float]) -> None:
         """A checked move (limits, step, keep-out along the path) at the jog speed."""
@@ -98,22 +120,38 @@ class TeachRig:
         return (float(m.center_px[0]), float(m.center_px[1])), float(m.rotation_deg)
 
     def plane(self) -> Plane:
-        """The artifact's plane from sensor readings at four points around the one the camera looks at
-        (the camera shifted in its own x and y so that the beam lands there; the arm comes back)."""
+        """The artifact's plane through the rig's model (``plane_samples``)."""
+        return self.plane_samples().plane(self.kinematics)
+
+    def plane_samples(self) -> PlaneSamples:
+        """Sensor readings at four points around the one the camera looks at (the camera shifted in its
+        own x and y so that the beam lands there; the arm comes back), with the encoders' joints of each."""
         if self.sensor_mount is None:
             raise TeachError("teaching a plane needs the distance sensor and its mount")
         start = self.joints()
         bx, by = float(self.sensor_mount[0, 3]), float(self.sensor_mount[1, 3])
-        points = []
+        samples = []
         try:
             for a, b in ((1, 1), (1, -1), (-1, -1), (-1, 1)):
                 shift = (a * PLANE_SPREAD_MM - bx, b * PLANE_SPREAD_MM - by, 0.0)
-                q = camera_offset_target(start, self.nominal, shift)
+                q = camera_offset_target(start, self.kinematics, shift)
                 self.move(q)
-                points.append(sensor_point(self.nominal.forward(q), self.sensor_mount, self.reading_mm()))
+                samples.append((self.attained(), self.reading_mm()))
         finally:
             self.move(start)
-        return fit_plane(points)
+        return PlaneSamples(self.sensor_mount, tuple(samples))
+
+
+@dataclass(frozen=True)
+class PlaneSamples:
+    """The sensor's readings of a plane (mm), each with the encoders' joints it was read at (deg): the
+    plane through any arm model (the sensor's mount in the camera frame)."""
+
+    sensor_mount: FloatArray
+    samples: tuple[tuple[tuple[float, ...], float], ...]
+
+    def plane(self, kinematics: Kinematics) -> Plane:
+        return fit_plane([sensor_point(kinematics.forward(q), self.sensor_mount, r) for q, r in self.samples])
 
 
 @dataclass(frozen=True)
@@ -143,16 +181,16 @@ def _focus(rig: TeachRig, *, square: bool) -> None:
     """Bring the camera to the working distance from the plane the sensor reads (squared to it with
     ``square``) before the crossing is measured: a defocused view measures poorly."""
     plane = rig.plane()
-    here = rig.nominal.forward(rig.joints())
+    here = rig.kinematics.forward(rig.joints())
     on_axis = crossing_on_plane(here, rig.intrinsics.principal_point, rig.intrinsics, plane)
     normal = plane.normal if square else None
-    target = pose_to_see(rig.joints(), rig.nominal, on_axis, rig.working_distance_mm, normal=normal)
+    target = pose_to_see(rig.joints(), rig.kinematics, on_axis, rig.working_distance_mm, normal=normal)
     rig.move(tuple(round(float(v), 3) for v in target))
 
 
 def _crossing_mm(rig: TeachRig, plane: Plane) -> tuple[FloatArray, tuple[float, float], float]:
     center, rotation = rig.crossing()
-    point = crossing_on_plane(rig.nominal.forward(rig.joints()), center, rig.intrinsics, plane)
+    point = crossing_on_plane(rig.kinematics.forward(rig.attained()), center, rig.intrinsics, plane)
     return point, center, rotation
 
 
@@ -167,13 +205,20 @@ def teach_reference(rig: TeachRig, *, rounds: int = 2) -> TaughtReference:
         rig.move(
             tuple(
                 round(float(v), 3)
-                for v in pose_to_see(rig.joints(), rig.nominal, point, rig.working_distance_mm)
+                for v in pose_to_see(rig.joints(), rig.kinematics, point, rig.working_distance_mm)
             )
         )
-    plane = rig.plane()
-    point, center, _ = _crossing_mm(rig, plane)
+    samples = rig.plane_samples()
+    center, _ = rig.crossing()
+    # the crossing as the nominal model reads it, calibrated or not (see ``teach_artifact``)
+    point = crossing_on_plane(
+        rig.nominal.forward(rig.attained()), center, rig.intrinsics, samples.plane(rig.nominal)
+    )
     return TaughtReference(
-        rig.joints(), center, (float(point[0]), float(point[1]), float(point[2])), plane.rms_mm
+        rig.joints(),
+        center,
+        (float(point[0]), float(point[1]), float(point[2])),
+        samples.plane(rig.kinematics).rms_mm,
     )
 
 
@@ -185,13 +230,20 @@ def teach_artifact(rig: TeachRig, *, rounds: int = 2) -> TaughtArtifact:
     for _ in range(rounds):
         plane = rig.plane()
         point, _, _ = _crossing_mm(rig, plane)
-        target = pose_to_see(rig.joints(), rig.nominal, point, rig.working_distance_mm, normal=plane.normal)
+        target = pose_to_see(
+            rig.joints(), rig.kinematics, point, rig.working_distance_mm, normal=plane.normal
+        )
         rig.move(tuple(round(float(v), 3) for v in target))
-    plane = rig.plane()
-    point, center, rotation = _crossing_mm(rig, plane)
-    pose = rig.nominal.forward(rig.joints())
-    turn = square_turn_deg(pose, center, rotation, rig.intrinsics, plane)
+    samples = rig.plane_samples()
+    plane = samples.plane(rig.kinematics)
+    center, rotation = rig.crossing()
+    at = rig.attained()
+    turn = square_turn_deg(rig.kinematics.forward(at), center, rotation, rig.intrinsics, plane)
     n = plane.normal
+    # The crossing's position stays the nominal model's reading at the same pose, calibrated or not: the
+    # frame every plan moves in, and one that a calibration from crossings alone does not hold (it
+    # leaves the camera's distance along its axis loose by millimetres); the orientation is the model's.
+    point = crossing_on_plane(rig.nominal.forward(at), center, rig.intrinsics, samples.plane(rig.nominal))
     return TaughtArtifact(
         (float(point[0]), float(point[1]), float(point[2])),
         (float(n[0]), float(n[1]), float(n[2])),
@@ -209,7 +261,7 @@ def teach_sensor_mount(
 
     The camera must be square to a flat surface with it in focus, i.e. at the working distance (the
     reference pose over the table's artifact, jogged until the crossing is sharp): the camera is moved
-    along its optical axis by ``heights_mm`` (through the nominal model), the sensor read at each, and
+    along its optical axis by ``heights_mm`` (through the rig's model), the sensor read at each, and
     the arm brought back. Returns the fit and the (distance, reading) pairs.
     """
     if rig.sensor_mount is None:
@@ -218,7 +270,7 @@ def teach_sensor_mount(
     pairs: list[tuple[float, float]] = []
     try:
         for h in heights_mm:
-            q = camera_jog_target(start, rig.nominal, "z", h) if h else start
+            q = camera_jog_target(start, rig.kinematics, "z", h) if h else start
             rig.move(q)
             pairs.append((rig.working_distance_mm - h, rig.reading_mm()))
     finally:
@@ -244,11 +296,14 @@ def camera_intrinsics(config: StationConfig, camera: Camera) -> CameraIntrinsics
     return CameraIntrinsics(K, np.zeros(5), (width, height))
 
 
-def rig_for(devices: StationDevices, *, speed_pct: float | None = None) -> TeachRig:
+def rig_for(
+    devices: StationDevices, *, speed_pct: float | None = None, model: TeachModel | None = None
+) -> TeachRig:
     """The rig of a station's devices (connected) and configuration: the nominal model with ``[camera]
     mount``, the camera model (``[camera] camera_model``, else the nominal pinhole from ``[calibration]``
     ``working_distance_mm`` and ``pixel_mm`` with the principal point at the frame's centre), the sensor's
-    mount, and the jog speed (``[robot] safety.jog_speed_pct``, default 10 %)."""
+    mount, the jog speed (``[robot] safety.jog_speed_pct``, default 10 %), and ``model``: the calibrated
+    arm to read through (None: the nominal model)."""
     config = devices.config
     if devices.robot is None:
         raise TeachError("teaching needs the robot ([robot] in the configuration)")
@@ -269,4 +324,5 @@ def rig_for(devices: StationDevices, *, speed_pct: float | None = None) -> Teach
         sensor_mount=devices.distance_sensor_mount,
         working_distance_mm=wd,
         speed_pct=speed,
+        model=model,
     )

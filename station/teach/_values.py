@@ -16,8 +16,12 @@ def taught_values(
     rig: TeachRig, what: str, name: str | None
 ) -> tuple[dict[str, Any], Callable[..., list[str]]]:
     """What ``station teach`` and the API's teach routes compute with ``rig`` (``what``: reference,
-    artifact (``name``) or sensor-mount): the taught values as JSON, and the edit that writes them into
-    the configuration document (:func:`station.teach.update_config`)."""
+    artifact (``name``) or sensor-mount): the taught values as JSON (``model``: the arm model they were
+    read through, ``TeachRig.model_source``; an artifact's position is always the nominal model's), and
+    the edit that writes them into the configuration document (:func:`station.teach.update_config`; the
+    model in the written line's comment)."""
+    source = rig.model_source
+    through = "the nominal arm model" if rig.model is None else rig.model.describe()
     if what == "reference":
         ref = teach_reference(rig)
         return (
@@ -26,12 +30,15 @@ def taught_values(
                 "crossing_mm": list(ref.crossing_mm),
                 "center_px": list(ref.center_px),
                 "plane_rms_mm": ref.plane_rms_mm,
+                "model": source,
             },
-            lambda doc: set_reference(doc, ref.joints_deg),
+            lambda doc: set_reference(doc, ref.joints_deg, through),
         )
     if what == "artifact":
         assert name is not None
         art = teach_artifact(rig)
+        # the crossing's position is the nominal model's reading whatever the model (``teach_artifact``)
+        artifact_through = through if rig.model is None else f"{through} (position: the nominal model)"
         return (
             {
                 "name": name,
@@ -41,8 +48,9 @@ def taught_values(
                 "joints_deg": list(art.joints_deg),
                 "center_px": list(art.center_px),
                 "plane_rms_mm": art.plane_rms_mm,
+                "model": source,
             },
-            lambda doc: set_artifact(doc, name, art.position_mm, art.normal, art.turn_deg),
+            lambda doc: set_artifact(doc, name, art.position_mm, art.normal, art.turn_deg, artifact_through),
         )
     fit, pairs = teach_sensor_mount(rig)
     return (
@@ -52,6 +60,7 @@ def taught_values(
             "expected_slope": fit.expected_slope,
             "rms_mm": fit.rms_mm,
             "pairs_mm": [list(p) for p in pairs],
+            "model": source,
         },
-        lambda doc: set_sensor_mount_z(doc, fit.translation_z_mm),
+        lambda doc: set_sensor_mount_z(doc, fit.translation_z_mm, through),
     )

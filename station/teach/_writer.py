@@ -47,12 +47,45 @@ def _array(values: Sequence[float], digits: int) -> Any:
     return tomlkit.item([round(float(v), digits) for v in values])
 
 
-def set_reference(doc: TOMLDocument, joints_deg: Sequence[float]) -> list[str]:
-    """``[robot] reference_joints_deg`` (0.001 deg)."""
+THROUGH = "taught through"
+"""The note a taught line's comment ends with: ``taught through the nominal arm model`` (the model it
+was read through, ``station.teach.TeachModel.describe``); the artifacts line's names each artifact's
+(``taught through: NAME: MODEL; ...``). A comment the line had before is kept in front of it."""
+
+
+def _noted(old: str, note: str) -> str:
+    """The line's comment ``old`` (``# ...`` or empty) with its note replaced by ``note``."""
+    text = old[1:].strip() if old.startswith("#") else old.strip()
+    kept = text.split(THROUGH)[0].strip().rstrip(";").strip()
+    return f"{kept}; {note}" if kept else note
+
+
+def _through(old: str, names: Sequence[str], name: str, model: str) -> str:
+    """The artifacts line's comment: ``old``'s with its note ``taught through: NAME: MODEL; ...``
+    holding ``name``'s model and the others' from before, in ``names``' order."""
+    entries: dict[str, str] = {}
+    head = THROUGH + ": "
+    if head in old:
+        for part in old[old.index(head) + len(head) :].split("; "):
+            key, sep, value = part.partition(": ")
+            if sep:
+                entries[key.strip()] = value.strip()
+    entries[name] = model
+    return _noted(old, head + "; ".join(f"{n}: {entries[n]}" for n in names if n in entries))
+
+
+def set_reference(doc: TOMLDocument, joints_deg: Sequence[float], model: str | None = None) -> list[str]:
+    """``[robot] reference_joints_deg`` (0.001 deg); ``model``: the arm model it was read through (the
+    line's comment)."""
     robot = doc.get("robot")
     if robot is None:
         raise ConfigurationError("the configuration has no [robot] section to hold the reference pose")
+    before = robot["reference_joints_deg"].trivia.comment if "reference_joints_deg" in robot else ""
     robot["reference_joints_deg"] = _array(joints_deg, 3)
+    if model is not None:
+        robot["reference_joints_deg"].comment(_noted(before, f"{THROUGH} {model}"))
+    elif before:
+        robot["reference_joints_deg"].comment(before.lstrip("#").strip())
     return [f"[robot] reference_joints_deg = {list(robot['reference_joints_deg'])}"]
 
 
@@ -62,9 +95,11 @@ def set_artifact(
     position_mm: Sequence[float],
     normal: Sequence[float],
     turn_deg: float,
+    model: str | None = None,
 ) -> list[str]:
     """One artifact of ``[calibration]``: its crossing (0.001 mm), normal (1e-5) and turn (0.001 deg),
-    in place of the one called ``name`` (``artifact_names``, else its number 1, 2, ...), or appended."""
+    in place of the one called ``name`` (``artifact_names``, else its number 1, 2, ...), or appended;
+    ``model``: the arm model it was read through (in the ``artifacts_mm`` line's comment, by name)."""
     cal = doc.get("calibration")
     if cal is None or "working_distance_mm" not in cal or "pixel_mm" not in cal:
         raise ConfigurationError(
@@ -89,7 +124,10 @@ def set_artifact(
         names.append(name)
     else:
         positions[k], normals[k], turns[k] = row
+    before = cal["artifacts_mm"].trivia.comment if "artifacts_mm" in cal else ""
     cal["artifacts_mm"] = tomlkit.item([[float(c) for c in p] for p in positions])
+    if model is not None:
+        cal["artifacts_mm"].comment(_through(before, names, name, model))
     cal["artifact_normals"] = tomlkit.item([[float(c) for c in v] for v in normals])
     cal["artifact_turns_deg"] = tomlkit.item(turns)
     if "artifact_names" in cal or name != str(k + 1):
@@ -97,8 +135,9 @@ def set_artifact(
     return [f"[calibration] artifact {name!r}: crossing {row[0]} mm, normal {row[1]}, turn {row[2]} deg"]
 
 
-def set_sensor_mount_z(doc: TOMLDocument, translation_z_mm: float) -> list[str]:
-    """``[distance_sensor] mount.translation_mm``'s z (0.001 mm), its x and y kept."""
+def set_sensor_mount_z(doc: TOMLDocument, translation_z_mm: float, model: str | None = None) -> list[str]:
+    """``[distance_sensor] mount.translation_mm``'s z (0.001 mm), its x and y kept; ``model``: the arm
+    model it was read through (the ``[distance_sensor]`` table's ``mount`` line's comment)."""
     sensor = doc.get("distance_sensor")
     if sensor is None:
         raise ConfigurationError("the configuration has no [distance_sensor] whose mount to teach")
@@ -109,6 +148,8 @@ def set_sensor_mount_z(doc: TOMLDocument, translation_z_mm: float) -> list[str]:
     xyz = [float(v) for v in mount.get("translation_mm") or [30.0, 0.0, 0.0]]
     xyz[2] = translation_z_mm
     mount["translation_mm"] = _array(xyz, 3)
+    if model is not None:
+        sensor["mount"].comment(_noted(sensor["mount"].trivia.comment, f"{THROUGH} {model}"))
     return [f"[distance_sensor] mount.translation_mm = {list(mount['translation_mm'])}"]
 
 

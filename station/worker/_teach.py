@@ -19,6 +19,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Callable, Mapping
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
@@ -98,13 +99,37 @@ def jog_arm(devices: StationDevices, request: Mapping[str, Any]) -> dict[str, An
     return result.to_dict()
 
 
-def teach_on(devices: StationDevices, path: Path | None, what: str, name: str | None) -> dict[str, Any]:
+def session_robot_identity(record: Any, session: Any) -> Mapping[str, Any] | None:
+    """The robot's identity a session ran with: as it reported it once connected (the session's
+    ``connected`` event), else as recorded when the session was created."""
+    for event in record.events(session.id, limit=50):
+        if event.type == "connected":
+            robot = (event.data.get("devices") or {}).get("robot")
+            if isinstance(robot, Mapping):
+                return robot
+    recorded = (session.identities or {}).get("robot")
+    return recorded if isinstance(recorded, Mapping) else None
+
+
+ModelOf = Callable[[StationDevices], Any]
+"""What teaching reads through, resolved once the devices are connected (None: the nominal model)."""
+
+
+def teach_on(
+    devices: StationDevices,
+    path: Path | None,
+    what: str,
+    name: str | None,
+    model_of: ModelOf | None = None,
+) -> dict[str, Any]:
     """Teach ``what`` (``reference``, ``artifact`` with its ``name``, ``sensor-mount``) from the devices
-    (connected here, closed after), write it into the configuration at ``path`` (comments kept, the old
-    file backed up) and apply it to ``devices.config``. ``{"what", "taught", "config", "backup",
-    "changes"}`` (``config`` and ``backup``: the files' names, in the configuration's folder).
-    TeachError, ConfigurationError, StopLatchedError, MotionRejectedError: nothing was written;
-    NotAvailableError (nothing moved) without a configuration file (``path`` None)."""
+    (connected here, closed after), through ``model_of(devices)`` (a ``station.teach.TeachModel``; None:
+    the nominal model), write it into the configuration at ``path`` (comments kept, the old file backed
+    up) and apply it to ``devices.config``. ``{"what", "taught", "config", "backup", "changes"}``
+    (``config`` and ``backup``: the files' names, in the configuration's folder; ``taught.model``: which
+    model). TeachError (CalibrationRefusedError too), ConfigurationError, StopLatchedError,
+    MotionRejectedError: nothing was written; NotAvailableError (nothing moved) without a configuration
+    file (``path`` None)."""
     from station.teach import TeachError, rig_for, taught_values, update_config
 
     if what not in TEACH_WHATS:
@@ -122,7 +147,8 @@ def teach_on(devices: StationDevices, path: Path | None, what: str, name: str | 
                 "this service has no configuration file to teach into: start it with station serve"
                 " --config station.toml (a simulated station's taught values come from its truth)"
             )
-        taught, edit = taught_values(rig_for(devices), what, name)
+        model = model_of(devices) if model_of is not None else None
+        taught, edit = taught_values(rig_for(devices, model=model), what, name)
         done = update_config(path, edit)
     finally:
         for device in reversed(opened):
@@ -174,11 +200,45 @@ class ArmTasks:
         """One jog (:func:`jog_arm`); JogError, SpeedCapError, StopLatchedError: nothing moved."""
         return self._arm_task("being jogged", "jog", lambda: jog_arm(self.devices, request))
 
-    def rpc_teach(self, what: str, name: str | None) -> dict[str, Any]:
-        """Teach ``what`` into the station's configuration file (:func:`teach_on`); NotAvailableError when
-        the service has no configuration file to write (said once the arm is free and its stop not
-        latched: what to do first comes first)."""
+    def _station_name(self) -> str:  # pragma: no cover - SessionHost's
+        raise NotImplementedError
+
+    def _calibrated_model(self, session_id: str) -> ModelOf:
+        """The model of calibration session ``session_id`` (``station.teach.model_from_session``), checked
+        against the robot once it is connected."""
+        from station.record import RecordNotFoundError
+        from station.teach import CalibrationSessionInvalidError, model_from_session
+
+        def model_of(devices: StationDevices) -> Any:
+            try:
+                session = self.record.get_session(session_id)
+            except RecordNotFoundError as exc:
+                raise CalibrationSessionInvalidError(
+                    f"no calibration session {session_id!r} on record ({exc}): run the arm's calibration"
+                    " (station run calibration, or the page's Sessions panel) and name it"
+                ) from exc
+            robot = devices.robot
+            return model_from_session(
+                session,
+                station=self._station_name(),
+                robot_identity=None if robot is None else asdict(robot.identity()),
+                session_identity=session_robot_identity(self.record, session),
+                camera_mount=devices.config.camera_mount().matrix(),
+            )
+
+        return model_of
+
+    def rpc_teach(
+        self, what: str, name: str | None, calibration_session: str | None = None
+    ) -> dict[str, Any]:
+        """Teach ``what`` into the station's configuration file (:func:`teach_on`), through the calibrated
+        arm of ``calibration_session`` when one is named; NotAvailableError when the service has no
+        configuration file to write (said once the arm is free and its stop not latched: what to do
+        first comes first)."""
         path = self.spec.config
-        done = self._arm_task("being taught", "teach", lambda: teach_on(self.devices, path, what, name))
+        model_of = None if calibration_session is None else self._calibrated_model(calibration_session)
+        done = self._arm_task(
+            "being taught", "teach", lambda: teach_on(self.devices, path, what, name, model_of)
+        )
         log.info("taught %s into %s (the old file is %s)", what, done["config"], done["backup"])
         return done

@@ -35,6 +35,7 @@ import numpy as np
 import pytest
 
 from sim.calibration_truth import truth_report
+from sim.model_frame import artifacts_in_model_frame
 from sim.station import SIM_SENSOR_MOUNT, taught_artifacts_mm, taught_normals, taught_turns_deg
 from station.arm_route import lift_pose, split_move
 from station.config import load_config
@@ -127,12 +128,14 @@ def jog_to(c: httpx.Client, target: Sequence[float]) -> int:
     return jogs
 
 
-def approach(reference: Sequence[float], nominal: Kinematics, wd: float, k: int) -> list[float]:
-    """The joints that show artifact ``k`` where the drawing places it, square to its drawn normal at the
+def approach(
+    reference: Sequence[float], nominal: Kinematics, wd: float, k: int, drawing: dict[str, Any] = DRAWING
+) -> list[float]:
+    """The joints that show artifact ``k`` where ``drawing`` places it, square to its drawn normal at the
     working distance and turned as drawn (the cross square in the image), in the arm's configuration
     nearest the reference pose (the one a person teaches in: its wrist not flipped): that configuration
     squared with no turn, then the wrist's last joint turned (the camera sits on its axis)."""
-    position, normal, turn = DRAWING["artifacts"][k], DRAWING["normals"][k], DRAWING["turns"][k]
+    position, normal, turn = drawing["artifacts"][k], drawing["normals"][k], drawing["turns"][k]
     square = pose_to_see(reference, nominal, position, wd, normal=normal, turn_deg=0.0)
     seed = [*square[:5], float(square[5]) + turn]
     q = pose_to_see(seed, nominal, position, wd, normal=normal, turn_deg=turn)
@@ -189,8 +192,8 @@ def centre_crossing(c: httpx.Client, pixel_mm: float) -> None:
         seen = again
 
 
-def teach(c: httpx.Client, path: str) -> dict[str, Any]:
-    r = c.post(f"/api/v1/station/teach/{path}")
+def teach(c: httpx.Client, path: str, body: dict[str, Any] | None = None) -> dict[str, Any]:
+    r = c.post(f"/api/v1/station/teach/{path}", json=body)
     assert r.status_code == 200, r.text
     doc: dict[str, Any] = r.json()
     return doc
@@ -304,6 +307,9 @@ def test_day_one_from_the_drawings_to_a_calibrated_arm(tmp_path: Path) -> None:
         cal = run(c, CALIBRATION)
         assert cal["results"]["selftest"]["session_id"] == tested
         check_calibration(served, cal)
+        # 5. after the arm's calibration, each artifact taught again through it
+        again = reteach(c, cal["id"], reference["reference_joints_deg"], nominal, wd, pixel_mm, taught)
+        check_retaught(served.service.in_worker(frame_truth), again, cal["id"])
     print(f"day one: {jogs} jogs, taught in {taught_s:.0f} s, all in {time.monotonic() - began:.0f} s")
 
 
@@ -333,8 +339,8 @@ def check_taught(
         assert position < 0.1, (name, errors)
         # The normal and the turn are read through the nominal model: the arm's orientation error there
         # (its joint-zero errors, about 0.1 deg on this arm) enters them whole. Seen with seed 3: normals
-        # 0.01-0.12 deg, turns 0.09-0.15 deg off; held to 0.2 deg (the issue asks 0.1: teaching again
-        # through the calibrated model would close it, not done here). Positions: 0.03-0.05 mm.
+        # 0.01-0.12 deg, turns 0.09-0.15 deg off; held to 0.2 deg (the issue's 0.1 is held once taught
+        # again through the calibrated arm: check_retaught). Positions: 0.03-0.05 mm.
         assert normal < 0.2, (name, errors)
         assert turn < 0.2, (name, errors)
     # the file holds them (rounded as written), its comments kept
@@ -361,3 +367,64 @@ def check_calibration(served: Served, calibration: dict[str, Any]) -> None:
     assert report["max_abs_z"] <= 4.0
     checks = {ch["name"]: ch for ch in results["checks"]}
     assert all(ch["passed"] for ch in checks.values() if ch["severity"] == "fail"), checks
+
+
+def reteach(
+    c: httpx.Client,
+    calibration_id: str,
+    reference: Sequence[float],
+    nominal: Kinematics,
+    wd: float,
+    pixel_mm: float,
+    taught: dict[str, dict[str, Any]],
+) -> dict[str, dict[str, Any]]:
+    """Back to each artifact (the table's at the reference pose, the others where the first teach placed
+    them, jogged there as before) and taught again through the calibration session."""
+    body = {"calibration_session": calibration_id}
+    assert c.post("/api/v1/station/robot/to-reference").status_code == 200
+    centre_crossing(c, pixel_mm)
+    again = {"table": teach(c, "artifact/table", body)["taught"]}
+    first = {
+        "artifacts": [taught[n]["position_mm"] for n in NAMES],
+        "normals": [taught[n]["normal"] for n in NAMES],
+        "turns": [taught[n]["turn_deg"] for n in NAMES],
+    }
+    for k in range(1, 5):
+        jog_to(c, approach(reference, nominal, wd, k, first))
+        centre_crossing(c, pixel_mm)
+        again[NAMES[k]] = teach(c, f"artifact/{NAMES[k]}", body)["taught"]
+    return again
+
+
+def frame_truth(host: SessionHost) -> list[Any]:
+    """The artifacts in the calibrated model's base frame (``sim.model_frame``): the normals' and turns'
+    truth, with the crossings' positions in the world's frame (read through the nominal model either way)."""
+    world = host.devices.truth.world
+    positions = taught_artifacts_mm(world, digits=None)
+    return [
+        (positions[k], normal, turn) for k, (_, normal, turn) in enumerate(artifacts_in_model_frame(world))
+    ]
+
+
+def check_retaught(true: list[Any], again: dict[str, dict[str, Any]], calibration_id: str) -> None:
+    """Taught through the calibrated arm, every normal and turn within 0.1 deg of the truth in its frame
+    (the one its nominal base row defines), and every crossing (read through the nominal model: a
+    calibration from crossings alone leaves the calibrated one's position loose, ``station.teach``'s
+    notes) within 0.1 mm of the truth."""
+    errors = {
+        name: (
+            float(np.max(np.abs(np.subtract(again[name]["position_mm"], true[k][0])))),
+            angle_deg(again[name]["normal"], true[k][1]),
+            turn_error_deg(again[name]["turn_deg"], true[k][2]),
+        )
+        for k, name in enumerate(NAMES)
+    }
+    print(
+        "re-taught - truth (position mm, normal deg, turn deg):",
+        {n: [round(v, 3) for v in e] for n, e in errors.items()},
+    )
+    for name, (position, normal, turn) in errors.items():
+        assert again[name]["model"]["calibration_session"] == calibration_id
+        assert position < 0.1, (name, errors)
+        assert normal < 0.1, (name, errors)
+        assert turn < 0.1, (name, errors)

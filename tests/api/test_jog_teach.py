@@ -277,3 +277,28 @@ def test_teaching_the_sensor_mount_and_the_reference_rewrites_the_file_with_its_
         # the worker uses the taught pose at once
         r = c.get("/api/v1/station/robot")
         assert r.json()["at_reference"] is True, r.text
+
+
+def test_teaching_through_a_calibration_session_that_is_not_one_is_refused_and_nothing_moves(
+    tmp_path: Path,
+) -> None:
+    path = tmp_path / "station.toml"
+    text = lab_config(
+        reference=[0.0, 30.0, 60.0, 0.0, 90.0, 0.0],
+        artifacts=[[482.0, 0.0, 330.0]],
+        normals=[[0.0, 0.0, 1.0]],
+        turns=[0.0],
+        names=["table"],
+    )
+    path.write_text(text, encoding="utf-8")
+    with served_with_config(path, tmp_path / "data", seed=3) as served, served.client() as c:
+        start = commanded(c)
+        for what in TEACH:
+            doc = problem(
+                c.post(what, json={"calibration_session": "abcd1234"}), 422, "calibration_session_invalid"
+            )
+            assert "station run calibration" in doc["detail"], doc
+        problem(c.post(TEACH[1], json={"calibration_session": "not an id"}), 422, "invalid_request")
+        problem(c.post(TEACH[1], json={"calibration": "abcd1234"}), 422, "invalid_request")
+        assert commanded(c) == start
+        assert path.read_text(encoding="utf-8") == text  # nothing written
