@@ -78,6 +78,10 @@ class SessionReads:
         """The worker's latest session's events, and the listeners of every event."""
         self._recorded = RecordedProgress(record)
 
+    def forget_station(self) -> None:
+        """The station's configuration changed (a teach): ``/station`` is read again."""
+        self._station_cache = None
+
     def changed(self) -> None:
         """A session was created, imported or acted on, or the worker ended: the cached reads are stale."""
         self.generation += 1

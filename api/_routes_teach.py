@@ -13,6 +13,7 @@ and answers the taught values with the backup's name.
 from __future__ import annotations
 
 import contextlib
+import logging
 import math
 from typing import Annotated, Any, Literal
 
@@ -23,9 +24,10 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 from api._auth import motion_access
 from api._deps import SESSION_ID, service_of
 from api._openapi import problems
-from api._service import StationService
+from api._service import StationService, WorkerError
 from station.jog import MAX_CAMERA_JOG_DEG, MAX_CAMERA_JOG_MM, MAX_JOINT_JOG_DEG
 
+log = logging.getLogger(__name__)
 router = APIRouter(prefix="/api/v1/station")
 
 JOG_TIMEOUT_S = 120.0
@@ -179,12 +181,20 @@ _TEACH_409 = (
 )
 
 
+def _taught(service: StationService, what: str, name: str | None, session: str | None) -> dict[str, Any]:
+    """The teach, then ``/station``'s configuration taken again (the file and the worker's have changed)."""
+    done = _after_motion(service, "teach", what, name, session, timeout_s=TEACH_TIMEOUT_S)
+    try:
+        service.config_changed()
+    except (WorkerError, TimeoutError) as exc:  # written; /station shows the old values until a restart
+        log.warning("the station's configuration could not be read again after the teach: %s", exc)
+    return done
+
+
 async def _teach(request: Request, what: str, name: str | None, body: TeachBody | None) -> TaughtModel:
     service = service_of(request)
     session = None if body is None else body.calibration_session
-    done = await run_in_threadpool(
-        _after_motion, service, "teach", what, name, session, timeout_s=TEACH_TIMEOUT_S
-    )
+    done = await run_in_threadpool(_taught, service, what, name, session)
     return TaughtModel.model_validate(done)
 
 

@@ -136,6 +136,12 @@ class StationService:
             log.warning("left-over sessions not reconciled: %s", exc)
             return []
 
+    def config_changed(self) -> None:
+        """A teach rewrote the configuration the worker's devices use: ``/station`` shows it from now on
+        (the worker's snapshot is taken again)."""
+        self.worker.info = self.worker.call("info", timeout_s=30)
+        self.reads.forget_station()
+
     def _on_worker_exit(self) -> None:
         """The worker died (not a shutdown): its session, left active, shows as interrupted."""
         marked = self._reconcile()

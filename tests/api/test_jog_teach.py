@@ -270,13 +270,21 @@ def test_teaching_the_sensor_mount_and_the_reference_rewrites_the_file_with_its_
         np.testing.assert_allclose(doc["taught"]["reference_joints_deg"], REFERENCE_JOINTS_DEG, atol=0.05)
         config = load_config(path)
         assert config.robot is not None
+        assert config.distance_sensor is not None
         np.testing.assert_allclose(
             config.robot.reference_joints_deg, doc["taught"]["reference_joints_deg"], atol=1e-3
         )
         assert len(list(tmp_path.glob("station.toml.*.bak"))) == 2  # no backup overwritten
-        # the worker uses the taught pose at once
+        # the worker uses the taught pose at once, and /station shows the taught values
         r = c.get("/api/v1/station/robot")
         assert r.json()["at_reference"] is True, r.text
+        shown = c.get("/api/v1/station").json()["config"]
+        np.testing.assert_allclose(
+            shown["robot"]["reference_joints_deg"], doc["taught"]["reference_joints_deg"], atol=1e-3
+        )
+        assert shown["distance_sensor"]["mount"]["translation_mm"][2] == pytest.approx(
+            config.distance_sensor.mount.translation_mm[2], abs=1e-3
+        )
 
 
 def test_teaching_through_a_calibration_session_that_is_not_one_is_refused_and_nothing_moves(
