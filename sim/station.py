@@ -351,4 +351,5 @@ def build_sim_station(
         distance_sensor=sensor,
         owned=[sim],
         truth=sim,
+        robot_options={"port": sim.port},
     )

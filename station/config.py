@@ -433,6 +433,8 @@ class StationDevices:
     distance_sensor: DistanceSensor | None = None
     owned: list[Any] = field(default_factory=list)
     truth: Any = None
+    robot_options: dict[str, Any] = field(default_factory=dict)
+    """The options the robot was built with, its safety fields aside (``rebuild_robot``)."""
 
     @property
     def reference_joints_deg(self) -> tuple[float, ...] | None:
@@ -443,6 +445,17 @@ class StationDevices:
         """4x4 pose of the distance sensor in the camera frame (``None`` without a sensor)."""
         cfg = self.config.distance_sensor
         return None if cfg is None or self.distance_sensor is None else cfg.mount.matrix()
+
+    def rebuild_robot(self) -> None:
+        """The robot built again, same driver and options, with the configuration's safety fields as they
+        are now: a taught mount moved a body the keep-out checks carry (the sensor head). Call it with the
+        robot closed; its stop latch lives in its file (``robot_latch_file``), or is not latched (a teach
+        refuses while it is)."""
+        if self.config.robot is None or self.robot is None:
+            return
+        self.robot = build(
+            "robot", self.config.robot.driver, **self.robot_options, safety=self.config.robot_safety()
+        )
 
     def identities(self) -> dict[str, dict[str, str | None]]:
         """Each device's identity, as recorded with a session."""
@@ -468,13 +481,13 @@ def open_station(config: StationConfig, *, broker: PromptBroker | None = None) -
     broker = broker or PromptBroker()
     camera: Camera = build("camera", config.camera.driver, **config.camera.options)
     robot: Robot | None = None
+    options: dict[str, Any] = {}
     if config.robot is not None:
         options = dict(config.robot.options)
-        options["safety"] = config.robot_safety()
         latch = config.robot_latch_file()
         if latch is not None:
             options.setdefault("latch_file", str(latch))
-        robot = build("robot", config.robot.driver, **options)
+        robot = build("robot", config.robot.driver, **options, safety=config.robot_safety())
     table: XYTable | None = None
     if config.table is not None:
         table = build("table", config.table.driver, broker=broker, **config.table.options)
@@ -482,7 +495,13 @@ def open_station(config: StationConfig, *, broker: PromptBroker | None = None) -
     if config.distance_sensor is not None:
         sensor = build("distance_sensor", config.distance_sensor.driver, **config.distance_sensor.options)
     return StationDevices(
-        config=config, camera=camera, broker=broker, robot=robot, table=table, distance_sensor=sensor
+        config=config,
+        camera=camera,
+        broker=broker,
+        robot=robot,
+        table=table,
+        distance_sensor=sensor,
+        robot_options=options,
     )
 
 

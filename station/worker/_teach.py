@@ -8,7 +8,9 @@ robot before it is sent (limits, step, keep-out along the path, the speed cap: `
 
 A teach writes the station's configuration file (``station.teach.update_config``: comments kept, the
 old file backed up) and then applies the taught values to the configuration the worker's devices use
-(:func:`with_taught`), so that the next session, jog or ``to-reference`` uses them at once. A simulated
+(:func:`with_taught`), so that the next session, jog or ``to-reference`` uses them at once; a taught
+sensor mount also moves the sensor head's body in the robot's keep-out checks (the robot is built again
+with the new safety fields). A simulated
 station served with a configuration file (``ServiceSettings(sim=True, config=F)``) starts with that
 file's taught values in place of the ones the simulator computes from its truth (:func:`with_taught`
 again): what a lab has before it teaches its cell.
@@ -153,7 +155,10 @@ def teach_on(
     finally:
         for device in reversed(opened):
             device.close()
+    safety = devices.config.robot_safety()
     devices.config = with_taught(devices.config, done.config)
+    if devices.config.robot_safety() != safety:  # a taught mount moved the sensor head the checks carry
+        devices.rebuild_robot()
     return {
         "what": what,
         "taught": taught,

@@ -71,6 +71,7 @@ class SessionHost(ArmTasks):
                 self.devices = open_sim_station(operator=not spec.manual_prompts, **spec.sim_options)
                 if self.config is not None:  # the lab's file: its taught values, not the sim's truth
                     self.devices.config = with_taught(self.devices.config, self.config)
+                    self.devices.rebuild_robot()  # its sensor mount is the one the keep-out carries
             elif self.config is not None:
                 self.devices = open_station(self.config)
         except BaseException:

@@ -43,6 +43,12 @@ def fixture_count(host: SessionHost) -> int:
     return len(sim_fixtures(host.devices.truth.world))
 
 
+def sensor_head_z(host: SessionHost) -> float:
+    """Where the robot's keep-out checks carry the distance sensor head: its near end's z in the flange."""
+    (head,) = [b for b in host.devices.robot.guard.limits.carried if b.name == "distance sensor head"]
+    return float(head.start_mm[2])
+
+
 def latch(host: SessionHost) -> None:
     """A stop from the controller (as an E-stop or the stop button would): the robot's latch set."""
     robot = host.devices.robot
@@ -246,9 +252,14 @@ def test_teaching_the_sensor_mount_and_the_reference_rewrites_the_file_with_its_
     )
     path.write_text(text, encoding="utf-8")
     with served_with_config(path, tmp_path / "data", seed=3) as served, served.client() as c:
+        # the keep-out carries the head where the file's mount puts it: 120 (camera) + 2 - 70 (its body)
+        assert served.service.in_worker(sensor_head_z) == pytest.approx(52.0, abs=1e-9)
         r = c.post("/api/v1/station/teach/sensor-mount")
         assert r.status_code == 200, r.text
         doc = r.json()
+        # and where the taught one does, from now on
+        taught_head = 120.0 + doc["taught"]["translation_z_mm"] - 70.0
+        assert served.service.in_worker(sensor_head_z) == pytest.approx(taught_head, abs=1e-3)  # as written
         assert doc["what"] == "sensor-mount"
         assert doc["config"] == "station.toml"
         assert doc["taught"]["translation_z_mm"] == pytest.approx(0.0, abs=0.1)  # the sim's true mount
