@@ -335,6 +335,22 @@ class StationConfig(BaseModel):
         safety.camera_offset_mm``): the nominal camera frame of jogs, teaching and calibration."""
         return camera_mount_of(self.model_dump(mode="json"))
 
+    def camera_frame(self, what: str) -> CameraMount:
+        """``camera_mount()`` for ``what``, which needs the camera's frame (jogging the camera, teaching,
+        the self-test): ConfigurationError when the configuration gives no mounting at all (neither
+        ``[camera] mount`` nor ``[robot] safety.camera_offset_mm``): the default (100 mm straight out of
+        the flange) would put every camera-frame move off by as much as the real bracket differs."""
+        given = self.camera.mount is not None or (
+            self.robot is not None and LEGACY_CAMERA_OFFSET_KEY in self.robot.safety
+        )
+        if not given:
+            raise ConfigurationError(
+                f"{what} needs the camera's mounting on the flange: add [camera] mount = {{ translation_mm ="
+                " [x, y, z], rotation_deg = [rx, ry, rz] }} to the configuration, read off the bracket's"
+                " drawing (README: Bring-up, step 1)"
+            )
+        return self.camera_mount()
+
     def robot_latch_file(self) -> Path | None:
         """Where the robot's stop latch is kept across processes: ``robot-stop-latch.json`` in the data
         directory (``data_dir``, else ``$STATION_DATA``); ``None`` when neither is set (then the latch

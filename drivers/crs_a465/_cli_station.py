@@ -86,7 +86,7 @@ def run_jog(robot: CrsA465, args: argparse.Namespace, out: TextIO | None = None)
             raise ValueError(
                 "jog camera needs --config FILE: the camera's mounting on the flange ([camera] mount)"
             )
-        nominal = Kinematics(tool=station.camera_mount().matrix())
+        nominal = Kinematics(tool=station.camera_frame("jogging the camera").matrix())
     done = jog(
         robot,
         joint=args.jog_joint if args.jog_kind == "joint" else None,

@@ -79,7 +79,7 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     model = None
     if args.calibration is not None:
         try:  # before anything moves: a file that cannot be taught through is a usage error
-            model = model_from_file(args.calibration, station_config.camera_mount().matrix())
+            model = model_from_file(args.calibration, station_config.camera_frame("teaching").matrix())
         except TeachError as exc:
             parser.error(f"--calibration {args.calibration}: {exc}")
     devices: config.StationDevices | None = None

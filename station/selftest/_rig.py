@@ -122,7 +122,7 @@ def selftest_rig(
     return SelftestRig(
         robot=robot,
         camera=camera,
-        nominal=Kinematics(tool=config.camera_mount().matrix()),
+        nominal=Kinematics(tool=config.camera_frame("the self-test").matrix()),
         intrinsics=camera_intrinsics(config, camera),
         working_distance_mm=config.calibration.working_distance_mm,
         ready_pose_deg=tuple(float(v) for v in ready_pose_deg),

@@ -319,7 +319,7 @@ def rig_for(
         robot=devices.robot,
         camera=devices.camera,
         sensor=devices.distance_sensor,
-        nominal=Kinematics(tool=config.camera_mount().matrix()),
+        nominal=Kinematics(tool=config.camera_frame("teaching").matrix()),
         intrinsics=intrinsics,
         sensor_mount=devices.distance_sensor_mount,
         working_distance_mm=wd,

@@ -88,7 +88,7 @@ def jog_arm(devices: StationDevices, request: Mapping[str, Any]) -> dict[str, An
                 speed_pct=_jog_speed(config),
             )
         else:
-            nominal = Kinematics(tool=config.camera_mount().matrix())
+            nominal = Kinematics(tool=config.camera_frame("jogging the camera").matrix())
             result = jog(
                 robot,
                 camera_axis=str(request["axis"]),
@@ -228,7 +228,7 @@ class ArmTasks:
                 station=self._station_name(),
                 robot_identity=None if robot is None else asdict(robot.identity()),
                 session_identity=session_robot_identity(self.record, session),
-                camera_mount=devices.config.camera_mount().matrix(),
+                camera_mount=devices.config.camera_frame("teaching").matrix(),
             )
 
         return model_of

@@ -73,6 +73,20 @@ def test_a_camera_jog_moves_the_camera_along_its_own_axis_at_the_jog_speed(capsy
     np.testing.assert_allclose(done["commanded_joints_deg"], done["target_joints_deg"], atol=1e-9)
 
 
+def test_a_camera_jog_without_the_cameras_mounting_is_refused_saying_what_to_add(capsys, tmp_path):
+    config = station_toml(tmp_path)
+    doc = tomlkit.parse(config.read_text(encoding="utf-8"))
+    del doc["camera"]["mount"]
+    del doc["robot"]["safety"]["camera_offset_mm"]
+    config.write_text(tomlkit.dumps(doc), encoding="utf-8")
+    code, out, err = run(capsys, "--sim", "--config", str(config), "jog", "camera", "x", "1.5")
+    assert (code, out) == (1, "")  # refused, as a jog the checks refuse
+    assert "jogging the camera needs the camera's mounting on the flange: add [camera] mount" in err
+    # a joint jog needs no camera frame
+    code, out, err = run(capsys, "--sim", "--config", str(config), "--json", "jog", "joint", "1", "0.5")
+    assert (code, err) == (0, "")
+
+
 def test_jogs_are_refused_before_anything_is_sent(capsys, tmp_path):
     config = station_toml(tmp_path)
     code, _, err = run(capsys, "--sim", "--config", str(config), "jog", "camera", "z", "25")
