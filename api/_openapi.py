@@ -60,6 +60,18 @@ def problem_response(status: int, description: str | None = None) -> dict[str, A
     return doc
 
 
+MOTION_403 = (
+    "from another machine (``remote_motion``: only from the station itself unless"
+    " ``--allow-remote-motion``), or a cookie request from another page"
+)
+"""The 403 of every route that moves the arm (``api._auth.motion_access``)."""
+ARM_BUSY_409 = (
+    "a session owns the arm, or it is already moving (``conflict``), a stop is latched"
+    " (``stop_latched``: acknowledge it at the station), or another process holds the station"
+)
+"""The 409 of every route that moves the arm between sessions."""
+
+
 def problems(*statuses: int, **described: str) -> dict[int | str, dict[str, Any]]:
     """``responses=`` of a route: a problem-details answer for each status (``described``: ``s409=...``
     gives a status its own description)."""

@@ -16,7 +16,7 @@ from api._deps import Measures, Reads, service_of
 from api._errors import ApiError
 from api._gate import DecodeGate
 from api._models import AccessModel, Health, StationModel, rendered
-from api._openapi import binary, problems
+from api._openapi import ARM_BUSY_409, MOTION_403, binary, problems
 from api._overlay import measurement_headers
 from station import __version__
 from station.arm_route import ArmStatus, ToReferenceResult
@@ -97,9 +97,8 @@ async def robot(request: Request) -> Response:
         401,
         502,
         503,
-        s403="from another machine (``remote_motion``: only from the station itself unless"
-        " ``--allow-remote-motion``), or a cookie request from another page",
-        s409="a session runs (or the arm is already on its way)",
+        s403=MOTION_403,
+        s409=ARM_BUSY_409,
         s422="the route is refused by the driver's checks; nothing moved (``problems``)",
     ),
 )

@@ -23,7 +23,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from api._auth import motion_access
 from api._deps import SESSION_ID, service_of
-from api._openapi import problems
+from api._openapi import ARM_BUSY_409, MOTION_403, problems
 from api._service import StationService, WorkerError
 from station.jog import MAX_CAMERA_JOG_DEG, MAX_CAMERA_JOG_MM, MAX_JOINT_JOG_DEG
 
@@ -122,16 +122,6 @@ class TaughtModel(BaseModel):
     changes: list[str]
 
 
-_MOTION_403 = (
-    "from another machine (``remote_motion``: only from the station itself unless"
-    " ``--allow-remote-motion``), or a cookie request from another page"
-)
-_BUSY_409 = (
-    "a session owns the arm, or it is already moving (``conflict``), a stop is latched"
-    " (``stop_latched``: acknowledge it at the station), or another process holds the station"
-)
-
-
 def _after_motion(service: StationService, call: str, *args: Any, timeout_s: float) -> dict[str, Any]:
     """``worker.call(call, *args)``, then the arm read again so that ``/station`` shows where it is."""
     try:
@@ -150,8 +140,8 @@ def _after_motion(service: StationService, call: str, *args: Any, timeout_s: flo
         401,
         502,
         503,
-        s403=_MOTION_403,
-        s409=_BUSY_409,
+        s403=MOTION_403,
+        s409=ARM_BUSY_409,
         s422="a bad body (a joint outside 1-6, a step over 10 mm or deg, an unknown axis), or a jog the"
         " robot's checks refuse (limits, keep-out, speed cap, a singularity: ``motion_rejected``); nothing"
         " moved",
@@ -175,7 +165,7 @@ _TEACH_422 = (
     " on record (``calibration_session_invalid``); nothing was written"
 )
 _TEACH_409 = (
-    _BUSY_409 + "; the service has no configuration file to write (``not_available``); or the"
+    ARM_BUSY_409 + "; the service has no configuration file to write (``not_available``); or the"
     " ``calibration_session`` cannot be taught through (``calibration_refused``: it did not succeed, a"
     " check failed, it ran on another station or controller, or with another camera mounting)"
 )
@@ -202,7 +192,7 @@ async def _teach(request: Request, what: str, name: str | None, body: TeachBody 
     "/teach/reference",
     response_model=TaughtModel,
     dependencies=[Depends(motion_access)],
-    responses=problems(401, 502, 503, s403=_MOTION_403, s409=_TEACH_409, s422=_TEACH_422),
+    responses=problems(401, 502, 503, s403=MOTION_403, s409=_TEACH_409, s422=_TEACH_422),
 )
 async def teach_reference(request: Request, body: TeachBody | None = None) -> TaughtModel:
     """Teach the reference pose: with the table's crossing in view (jog there first), the camera is
@@ -216,7 +206,7 @@ async def teach_reference(request: Request, body: TeachBody | None = None) -> Ta
     "/teach/artifact/{name}",
     response_model=TaughtModel,
     dependencies=[Depends(motion_access)],
-    responses=problems(401, 502, 503, s403=_MOTION_403, s409=_TEACH_409, s422=_TEACH_422),
+    responses=problems(401, 502, 503, s403=MOTION_403, s409=_TEACH_409, s422=_TEACH_422),
 )
 async def teach_artifact(
     request: Request,
@@ -237,7 +227,7 @@ async def teach_artifact(
     "/teach/sensor-mount",
     response_model=TaughtModel,
     dependencies=[Depends(motion_access)],
-    responses=problems(401, 502, 503, s403=_MOTION_403, s409=_TEACH_409, s422=_TEACH_422),
+    responses=problems(401, 502, 503, s403=MOTION_403, s409=_TEACH_409, s422=_TEACH_422),
 )
 async def teach_sensor_mount(request: Request, body: TeachBody | None = None) -> TaughtModel:
     """Teach the distance sensor's mount (the camera square to a flat surface and in focus, e.g. at the
