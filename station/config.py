@@ -13,6 +13,7 @@ import logging
 import math
 import os
 import tomllib
+import uuid
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from importlib.metadata import entry_points
@@ -433,6 +434,9 @@ class StationDevices:
     distance_sensor: DistanceSensor | None = None
     owned: list[Any] = field(default_factory=list)
     truth: Any = None
+    opened_id: str = field(default_factory=lambda: uuid.uuid4().hex)
+    """This opening of the devices: what the station confirmed since holds only for it
+    (``station.table_content``)."""
 
     @property
     def reference_joints_deg(self) -> tuple[float, ...] | None:
