@@ -81,7 +81,9 @@ class WorldSpec:
     true_intrinsics_seed: int | None = None
     """None: the target is seen through the true camera's pinhole (:attr:`World.true_camera`); a seed:
     through ``sim.lens.true_intrinsics(seed)`` (focal +/-2 %, principal point +/-20 px, radial
-    distortion), which a camera calibration must find. The artifact's renderer stays a pinhole."""
+    distortion), which a camera calibration must find. The artifact's renderer stays a pinhole at the
+    centre, at the true focal length's scale (the mean of ``fx`` and ``fy``; unless ``magnification_seed``
+    is given): one lens, so that a calibrated model agrees with the grooves' scale."""
 
 
 def magnification_error(seed: int, magnification_range: float = 0.02) -> float:

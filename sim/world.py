@@ -129,19 +129,22 @@ class World:
         self.kinematics = Kinematics(self.true_dh, tool=tool)
         """The arm's true kinematics (camera as the tool): truth, for tests and benchmarks."""
         lens_seed = self.spec.magnification_seed
-        self.magnification_error = (
-            0.0 if lens_seed is None else magnification_error(lens_seed, self.spec.magnification_range)
-        )
+        lens, camera = self.spec.true_intrinsics_seed, self.spec.camera
+        seeded = None if lens is None else true_intrinsics(lens, camera)
+        if lens_seed is not None:
+            self.magnification_error = magnification_error(lens_seed, self.spec.magnification_range)
+        elif seeded is not None:  # one lens: the artifact is seen at the true focal length's scale
+            K = seeded.camera_matrix
+            self.magnification_error = float(K[0, 0] + K[1, 1]) / (2.0 * camera.focal_px) - 1.0
+        else:
+            self.magnification_error = 0.0
         """The camera's true magnification over its nominal, minus 1: truth."""
         self.true_camera = replace(
             self.spec.camera, px_per_mm=self.spec.camera.px_per_mm * (1.0 + self.magnification_error)
         )
         """The camera as it really is (its focal length; the focal plane stays at the working distance):
         what the world renders with. The station is told ``spec.camera``."""
-        lens, camera = self.spec.true_intrinsics_seed, self.spec.camera
-        self.true_intrinsics = (
-            nominal_intrinsics(self.true_camera) if lens is None else true_intrinsics(lens, camera)
-        )
+        self.true_intrinsics = nominal_intrinsics(self.true_camera) if seeded is None else seeded
         """The camera's true intrinsics the calibration target is rendered with: truth."""
         self.last_target: TargetTruth | None = None
         """The calibration target's truth in the last frame rendered (None: no target in it): truth."""

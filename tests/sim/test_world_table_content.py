@@ -68,3 +68,18 @@ def test_the_new_content_lies_where_the_carriage_is_and_the_sensor_reads_it() ->
     # the target lies on the carriage where it is now, in the table artifact's place
     np.testing.assert_allclose(head @ seen, target_frame(world.table_artifact_pose()), atol=1e-6)
     np.testing.assert_allclose(world.surface_pose(head), world.table_artifact_pose())
+
+
+def test_a_seeded_lens_is_one_lens_for_the_target_and_the_cross() -> None:
+    """The calibration target is seen through the seeded true intrinsics; the cross, at the same focal
+    length's scale: a camera model calibrated on the target agrees with the grooves' scale."""
+    world = World(WorldSpec(true_intrinsics_seed=3))
+    K = world.true_intrinsics.camera_matrix
+    focal = float(K[0, 0] + K[1, 1]) / 2.0
+    assert abs(focal / world.spec.camera.focal_px - 1.0) > 0.005  # the seed's focal is not the nominal
+    assert world.true_camera.px_per_mm * world.spec.camera.working_distance_mm == pytest.approx(focal)
+    # an explicit magnification seed still decides the artifact's scale
+    both = World(WorldSpec(true_intrinsics_seed=3, magnification_seed=1))
+    assert both.magnification_error == pytest.approx(
+        World(WorldSpec(magnification_seed=1)).magnification_error
+    )
