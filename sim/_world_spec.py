@@ -14,6 +14,11 @@ from sim.artifact import ArtifactSpec, CameraSpec
 from sim.cell_rulers import DEFAULT_RULERS, RulerMount
 from station.kinematics import DHRow
 
+TableContent = Literal["cross", "ruler", "target"]
+"""What can lie on the X-Y table: the crossed artifact, a ruler in its place, or the camera-calibration
+target (``World.place_on_table`` swaps it at run time)."""
+TABLE_CONTENTS: tuple[TableContent, ...] = ("cross", "ruler", "target")
+
 #: A reference pose of the arm with the camera looking straight down (flange z along -z of the base).
 REFERENCE_JOINTS_DEG: tuple[float, ...] = (0.0, 30.0, 60.0, 0.0, 90.0, 0.0)
 
@@ -60,8 +65,9 @@ class WorldSpec:
     on the side of the cell opposite the X-Y table. The camera sees a ruler when its optical axis meets
     the ruler's glass."""
     table_artifact: Literal["cross", "ruler"] = "cross"
-    """What the X-Y table carries: the crossed artifact, or a ruler in its place (``sim._world_rulers``:
-    its middle where the crossing would be, ``s`` along the artifact's u) for a validation with the ruler."""
+    """What the X-Y table carries when the world is built: the crossed artifact, or a ruler in its place
+    (``sim._world_rulers``: its middle where the crossing would be, ``s`` along the artifact's u); the
+    simulated operator swaps it when a session asks (``World.place_on_table``)."""
     magnification_seed: int | None = None
     """None: the camera's true magnification is its nominal (``camera.px_per_mm``); a seed: the true
     focal length (and so the scale at the focal plane) differs from the nominal by a factor drawn
@@ -70,11 +76,14 @@ class WorldSpec:
     magnification_range: float = 0.02
     """Half-width of the seeded magnification error (relative)."""
     calibration_target: bool = False
-    """The camera-calibration target on the X-Y table in place of the artifact (``sim._world_target``)."""
+    """The camera-calibration target on the X-Y table in place of the artifact when the world is built
+    (``sim._world_target``); ``World.place_on_table`` swaps it at run time."""
     true_intrinsics_seed: int | None = None
     """None: the target is seen through the true camera's pinhole (:attr:`World.true_camera`); a seed:
     through ``sim.lens.true_intrinsics(seed)`` (focal +/-2 %, principal point +/-20 px, radial
-    distortion), which a camera calibration must find. The artifact's renderer stays a pinhole."""
+    distortion), which a camera calibration must find. The artifact's renderer stays a pinhole at the
+    centre, at the true focal length's scale (the mean of ``fx`` and ``fy``; unless ``magnification_seed``
+    is given): one lens, so that a calibrated model agrees with the grooves' scale."""
 
 
 def magnification_error(seed: int, magnification_range: float = 0.02) -> float:

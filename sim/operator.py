@@ -1,10 +1,14 @@
-"""The simulated operator: answers the station's table prompts by turning the simulated micrometers.
+"""The simulated operator: answers the station's table prompts by turning the simulated micrometers and
+by putting on the table what a session asks for.
 
 It watches a ``station.prompts.PromptBroker`` from its own thread. A prompt that asks for micrometer
 readings (fields in inches, ``x_in`` / ``y_in``) is answered after ``delay_s``: the operator turns the
 micrometers of the simulated world to the readings asked for (the world's table then moves, with its
 backlash and resolution) and confirms with the reading it was asked for, as a person reading the
-thimble would. Other prompts are left for someone else. ``cancel_next`` makes it decline once (tests).
+thimble would. A prompt to put something on the X-Y table (``station.table_content``: kind
+``table_content``, ``details["content"]``) is answered by putting that on the world's table
+(``World.place_on_table``), then confirming. Other prompts are left for someone else. ``cancel_next``
+makes it decline once (tests).
 """
 
 from __future__ import annotations
@@ -14,8 +18,9 @@ import threading
 import time
 from collections.abc import Callable
 
-from sim.world import INCH_MM, World
+from sim.world import INCH_MM, TABLE_CONTENTS, TableContent, World
 from station.prompts import Prompt, PromptBroker, PromptError, PromptEvent
+from station.table_content import PROMPT_KIND as TABLE_CONTENT_KIND
 
 log = logging.getLogger(__name__)
 
@@ -23,8 +28,15 @@ X_FIELD = "x_in"
 Y_FIELD = "y_in"
 
 
+def table_content_asked(prompt: Prompt) -> TableContent | None:
+    """What a prompt asks to put on the X-Y table (None: it asks nothing of the kind)."""
+    content = prompt.details.get("content") if prompt.kind == TABLE_CONTENT_KIND else None
+    return next((c for c in TABLE_CONTENTS if c == content), None)
+
+
 class SimOperator:
-    """Answers micrometer prompts on ``broker`` by moving ``world``'s table.
+    """Answers micrometer prompts on ``broker`` by moving ``world``'s table, and what-to-put-on-the-table
+    prompts by putting it there.
 
     Parameters
     ----------
@@ -54,7 +66,7 @@ class SimOperator:
         self.answered = 0
 
     def cancel_next(self) -> None:
-        """Decline the next micrometer prompt (as an operator who cannot reach the table would)."""
+        """Decline the next prompt it would answer (as an operator who cannot reach the table would)."""
         self._cancel_next = True
 
     def start(self) -> SimOperator:
@@ -85,7 +97,7 @@ class SimOperator:
                 continue
             handled.add(prompt.id)
             names = {f.name for f in prompt.fields}
-            if not {X_FIELD, Y_FIELD} <= names:
+            if not {X_FIELD, Y_FIELD} <= names and table_content_asked(prompt) is None:
                 log.debug("sim operator leaves prompt %s (%s) to someone else", prompt.id, prompt.kind)
                 continue
             self._answer(prompt)
@@ -97,6 +109,12 @@ class SimOperator:
             if self._cancel_next:
                 self._cancel_next = False
                 self._broker.cancel(prompt.id, reason="simulated operator declined", by="sim-operator")
+                return
+            content = table_content_asked(prompt)
+            if content is not None:
+                self._world.place_on_table(content)
+                self._broker.confirm(prompt.id, by="sim-operator")
+                self.answered += 1
                 return
             asked = {f.name: f.requested for f in prompt.fields}
             x_in, y_in = float(asked[X_FIELD] or 0.0), float(asked[Y_FIELD] or 0.0)
@@ -112,7 +130,8 @@ class SimOperator:
 class MicrometerFollower:
     """With a person answering the table prompts (the service's page, ``--manual-prompts``), the simulated
     world's micrometers follow what they confirm: the readings given, else those asked for, so that the
-    artifact really moves. Readings a prompt's validator refused never reach the world.
+    artifact really moves. Readings a prompt's validator refused never reach the world. What they confirm
+    to have put on the table lies there.
 
     A broker's listeners run after the asker was woken, so ``sync`` (the sim camera's ``before_grab``)
     waits until every prompt change so far has been applied: the camera never sees the old position.
@@ -131,7 +150,10 @@ class MicrometerFollower:
         try:
             answer = event.answer
             names = {f.name for f in event.prompt.fields}
-            if (
+            content = table_content_asked(event.prompt)
+            if event.kind == "closed" and answer is not None and answer.confirmed and content is not None:
+                self._world.place_on_table(content)
+            elif (
                 event.kind == "closed"
                 and answer is not None
                 and answer.confirmed

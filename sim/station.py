@@ -285,8 +285,9 @@ def build_sim_station(
     confirm). The Z distance sensor twin (a Keyence IL-065 behind a DL-RS1A) runs on its own pty at
     ``sensor_mount`` in the camera frame, read by the real driver (``sensor_mount=None``: no sensor).
     ``max_speed_pct``: the cell's speed cap (``[robot] safety``). ``table_artifact``: what the X-Y table
-    carries (``WorldSpec.table_artifact``; None: the spec's); ``calibration_target``: the camera
-    calibration's target lies there instead (``WorldSpec.calibration_target``). ``truth`` is the
+    carries when the station starts (``WorldSpec.table_artifact``; None: the spec's); ``calibration_target``:
+    the camera calibration's target lies there instead (``WorldSpec.calibration_target``); a session
+    asks for what it needs and the simulated operator swaps it (``station.table_content``). ``truth`` is the
     :class:`SimStation` (tests and benchmarks only).
     """
     if table_artifact is not None:

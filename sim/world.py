@@ -45,7 +45,13 @@ from sim._render_features import vignetting_map
 from sim._table import TableAxis, TableImperfections
 from sim._world_geometry import center_mm_of, euler_xyz, on_artifact
 from sim._world_rulers import render_ruler_view, table_ruler_frame
-from sim._world_spec import REFERENCE_JOINTS_DEG, WorldSpec, magnification_error
+from sim._world_spec import (
+    REFERENCE_JOINTS_DEG,
+    TABLE_CONTENTS,
+    TableContent,
+    WorldSpec,
+    magnification_error,
+)
 from sim._world_target import render_table_target
 from sim.arm_errors import FlangeErrorSequence
 from sim.artifact import Pose, Truth, homography_for, render
@@ -60,6 +66,8 @@ from station.kinematics import DHRow, Kinematics, rot_x, rot_z, transform
 __all__ = [
     "INCH_MM",
     "REFERENCE_JOINTS_DEG",
+    "TABLE_CONTENTS",
+    "TableContent",
     "TableImperfections",
     "World",
     "WorldSpec",
@@ -121,19 +129,22 @@ class World:
         self.kinematics = Kinematics(self.true_dh, tool=tool)
         """The arm's true kinematics (camera as the tool): truth, for tests and benchmarks."""
         lens_seed = self.spec.magnification_seed
-        self.magnification_error = (
-            0.0 if lens_seed is None else magnification_error(lens_seed, self.spec.magnification_range)
-        )
+        lens, camera = self.spec.true_intrinsics_seed, self.spec.camera
+        seeded = None if lens is None else true_intrinsics(lens, camera)
+        if lens_seed is not None:
+            self.magnification_error = magnification_error(lens_seed, self.spec.magnification_range)
+        elif seeded is not None:  # one lens: the artifact is seen at the true focal length's scale
+            K = seeded.camera_matrix
+            self.magnification_error = float(K[0, 0] + K[1, 1]) / (2.0 * camera.focal_px) - 1.0
+        else:
+            self.magnification_error = 0.0
         """The camera's true magnification over its nominal, minus 1: truth."""
         self.true_camera = replace(
             self.spec.camera, px_per_mm=self.spec.camera.px_per_mm * (1.0 + self.magnification_error)
         )
         """The camera as it really is (its focal length; the focal plane stays at the working distance):
         what the world renders with. The station is told ``spec.camera``."""
-        lens, camera = self.spec.true_intrinsics_seed, self.spec.camera
-        self.true_intrinsics = (
-            nominal_intrinsics(self.true_camera) if lens is None else true_intrinsics(lens, camera)
-        )
+        self.true_intrinsics = nominal_intrinsics(self.true_camera) if seeded is None else seeded
         """The camera's true intrinsics the calibration target is rendered with: truth."""
         self.last_target: TargetTruth | None = None
         """The calibration target's truth in the last frame rendered (None: no target in it): truth."""
@@ -166,9 +177,10 @@ class World:
             for x, y, z, yaw, tilt in self.spec.bench_artifacts
         ]
         self._rulers = [mount.frame(float(focus[2])) for mount in self.spec.rulers]  # on the table's plane
-        self._table_ruler = (
-            table_ruler_frame(self._artifact0) if self.spec.table_artifact == "ruler" else None
+        self._table_content: TableContent = (
+            "target" if self.spec.calibration_target else self.spec.table_artifact
         )
+        self._table_ruler = table_ruler_frame(self._artifact0) if self._table_content == "ruler" else None
         self._last_ruler: tuple[int, RulerTruth] | None = None
 
     # ------------------------------------------------------------------ arm and camera
@@ -219,6 +231,28 @@ class World:
         with self._lock:
             return self._x.position_mm, self._y.position_mm
 
+    @property
+    def table_content(self) -> TableContent:
+        """What lies on the X-Y table now: the crossed artifact, a ruler or the calibration target."""
+        with self._lock:
+            return self._table_content
+
+    def place_on_table(self, content: TableContent) -> None:
+        """What the operator does: take what lies on the X-Y table off and put ``content`` there.
+
+        Whatever it is lies where the carriage carries the artifact (its frame is the table artifact's,
+        :meth:`table_artifact_pose`, which moves with the micrometers): the next frame renders it, the
+        distance sensor's beam reads its surface (a ruler's glass; the target and the cross lie in the
+        table artifact's plane)."""
+        if content not in TABLE_CONTENTS:
+            raise ValueError(f"the X-Y table takes one of {', '.join(TABLE_CONTENTS)}, got {content!r}")
+        with self._lock:
+            self._table_content = content
+            self._table_ruler = table_ruler_frame(self._artifact0) if content == "ruler" else None
+            self._last_frame_homography, self._last_ruler = None, None
+            if content != "target":
+                self.last_target = None
+
     def table_artifact_pose(self) -> FloatArray:
         """4x4 frame of the artifact on the table, in the base frame: truth, for tests."""
         tx, ty = self.table_position_mm()
@@ -233,9 +267,11 @@ class World:
     def ruler_poses(self) -> list[FloatArray]:
         """Each ruler's 4x4 frame in the base frame (``sim.cell_rulers``; truth); the table's last, where
         the table carries one (it moves with the carriage)."""
-        if self._table_ruler is None:
+        with self._lock:
+            table_ruler = self._table_ruler
+        if table_ruler is None:
             return [F.copy() for F in self._rulers]
-        F = self._table_ruler.copy()
+        F = table_ruler.copy()
         F[:3, 3] += self._table_axes @ np.array(self.table_position_mm())
         return [*(R.copy() for R in self._rulers), F]
 
@@ -384,10 +420,12 @@ class World:
                     self._last_ruler = (r, seen_r[1])
                 return seen_r[0], None
         index = self.seen_artifact(cam)
-        if index == 0 and self.spec.calibration_target:
+        content = self.table_content
+        if index == 0 and content == "target":
             return self._render_target(cam, rng, exposure), None
         seen = np.linalg.inv(cam) @ self.artifact_poses()[index]
-        view = self._view(seen)
+        # a ruler on the table took the cross's place: beyond its glass lies the table top
+        view = None if index == 0 and content == "ruler" else self._view(seen)
         if view is None:
             with self._lock:
                 self._last_frame_homography = None

@@ -13,6 +13,7 @@ import logging
 import math
 import os
 import tomllib
+import uuid
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from importlib.metadata import entry_points
@@ -32,6 +33,7 @@ from station.mounts import (
     MountConflictError,
     SensorMount,
     camera_mount_of,
+    robot_safety_fields,
 )
 from station.prompts import PromptBroker
 from station.redaction import redact
@@ -336,14 +338,11 @@ class StationConfig(BaseModel):
         return camera_mount_of(self.model_dump(mode="json"))
 
     def camera_frame(self, what: str) -> CameraMount:
-        """``camera_mount()`` for ``what``, which needs the camera's frame (jogging the camera, teaching,
-        the self-test): ConfigurationError when the configuration gives no mounting at all (neither
-        ``[camera] mount`` nor ``[robot] safety.camera_offset_mm``): the default (100 mm straight out of
-        the flange) would put every camera-frame move off by as much as the real bracket differs."""
-        given = self.camera.mount is not None or (
-            self.robot is not None and LEGACY_CAMERA_OFFSET_KEY in self.robot.safety
-        )
-        if not given:
+        """``camera_mount()`` for ``what``, which moves in the camera's frame; ConfigurationError when no
+        mounting is given (the default, 100 mm straight out, would put such moves off by the difference)."""
+        if self.camera.mount is None and (
+            self.robot is None or LEGACY_CAMERA_OFFSET_KEY not in self.robot.safety
+        ):
             raise ConfigurationError(
                 f"{what} needs the camera's mounting on the flange: add [camera] mount = {{ translation_mm ="
                 " [x, y, z], rotation_deg = [rx, ry, rz] }} to the configuration, read off the bracket's"
@@ -364,7 +363,8 @@ class StationConfig(BaseModel):
         flange frame) from the mounts. Empty without a robot."""
         if self.robot is None:
             return {}
-        return robot_safety_fields(self.robot.safety, self.camera_mount(), self.distance_sensor)
+        sensor = self.distance_sensor.mount if self.distance_sensor is not None else None
+        return robot_safety_fields(self.robot.safety, self.camera_mount(), sensor)
 
 
 def load_config(path: str | Path) -> StationConfig:
@@ -397,38 +397,6 @@ def load_config(path: str | Path) -> StationConfig:
     return config.model_copy(update=updates) if updates else config
 
 
-def robot_safety_fields(
-    safety: dict[str, Any], camera: CameraMount, sensor: DistanceSensorConfig | None
-) -> dict[str, Any]:
-    """``safety`` (a robot's ``[robot] safety``) completed from the mounts: ``camera_offset_mm`` (the lens
-    front in the flange frame) and ``carried`` (the camera body and the sensor head as capsules in the
-    flange frame, after any the configuration lists itself)."""
-    out = dict(safety)
-    out[LEGACY_CAMERA_OFFSET_KEY] = tuple(float(v) for v in camera.front_point_mm())
-    carried = list(out.get("carried") or [])
-    body = camera.body_or_default()
-    a, b = camera.body_segment_mm(body)
-    carried.append(
-        {"name": "camera body", "start_mm": tuple(a), "end_mm": tuple(b), "radius_mm": body.radius_mm}
-    )
-    if sensor is not None and sensor.mount.body is not None:
-        head = sensor.mount.body
-        in_flange = camera.matrix() @ sensor.mount.matrix()
-        ends = in_flange[:3, :] @ np.array(
-            [[0.0, 0.0], [0.0, 0.0], [head.z_from_mm, head.z_to_mm], [1.0, 1.0]]
-        )
-        carried.append(
-            {
-                "name": "distance sensor head",
-                "start_mm": tuple(float(v) for v in ends[:, 0]),
-                "end_mm": tuple(float(v) for v in ends[:, 1]),
-                "radius_mm": head.radius_mm,
-            }
-        )
-    out["carried"] = carried
-    return out
-
-
 # --------------------------------------------------------------------------- devices for a session
 
 
@@ -451,6 +419,9 @@ class StationDevices:
     truth: Any = None
     robot_options: dict[str, Any] = field(default_factory=dict)
     """The options the robot was built with, its safety fields aside (``rebuild_robot``)."""
+    opened_id: str = field(default_factory=lambda: uuid.uuid4().hex)
+    """This opening of the devices: what the station confirmed since holds only for it
+    (``station.table_content``)."""
 
     @property
     def reference_joints_deg(self) -> tuple[float, ...] | None:
@@ -463,10 +434,8 @@ class StationDevices:
         return None if cfg is None or self.distance_sensor is None else cfg.mount.matrix()
 
     def rebuild_robot(self) -> None:
-        """The robot built again, same driver and options, with the configuration's safety fields as they
-        are now: a taught mount moved a body the keep-out checks carry (the sensor head). Call it with the
-        robot closed; its stop latch lives in its file (``robot_latch_file``), or is not latched (a teach
-        refuses while it is)."""
+        """The robot built again (same driver and options, closed, not latched: its latch is in its file)
+        with the configuration's safety fields as they are now: a taught mount moved a carried body."""
         if self.config.robot is None or self.robot is None:
             return
         self.robot = build(

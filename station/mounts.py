@@ -33,6 +33,7 @@ __all__ = [
     "MountConflictError",
     "SensorMount",
     "camera_mount_of",
+    "robot_safety_fields",
     "rotation_xyz_deg",
 ]
 
@@ -193,3 +194,35 @@ def camera_mount_of(config: Mapping[str, Any]) -> CameraMount:
                 f" describe the camera once, in [camera] mount, and remove {LEGACY_CAMERA_OFFSET_KEY}"
             )
     return mount if mount is not None else CameraMount()
+
+
+def robot_safety_fields(
+    safety: dict[str, Any], camera: CameraMount, sensor: SensorMount | None
+) -> dict[str, Any]:
+    """``safety`` (a robot's ``[robot] safety``) completed from the mounts: ``camera_offset_mm`` (the lens
+    front in the flange frame) and ``carried`` (the camera body and the sensor head as capsules in the
+    flange frame, after any the configuration lists itself)."""
+    out = dict(safety)
+    out[LEGACY_CAMERA_OFFSET_KEY] = tuple(float(v) for v in camera.front_point_mm())
+    carried = list(out.get("carried") or [])
+    body = camera.body_or_default()
+    a, b = camera.body_segment_mm(body)
+    carried.append(
+        {"name": "camera body", "start_mm": tuple(a), "end_mm": tuple(b), "radius_mm": body.radius_mm}
+    )
+    if sensor is not None and sensor.body is not None:
+        head = sensor.body
+        in_flange = camera.matrix() @ sensor.matrix()
+        ends = in_flange[:3, :] @ np.array(
+            [[0.0, 0.0], [0.0, 0.0], [head.z_from_mm, head.z_to_mm], [1.0, 1.0]]
+        )
+        carried.append(
+            {
+                "name": "distance sensor head",
+                "start_mm": tuple(float(v) for v in ends[:, 0]),
+                "end_mm": tuple(float(v) for v in ends[:, 1]),
+                "radius_mm": head.radius_mm,
+            }
+        )
+    out["carried"] = carried
+    return out

@@ -107,8 +107,11 @@ def station_measure_params(
 
 @contextlib.contextmanager
 def terminal_prompts(devices: StationDevices) -> Iterator[None]:
-    """Answer the manual table's prompts from this terminal, in a thread, while the block runs."""
-    if devices.table is None or devices.config.table is None or devices.config.table.prompts != "terminal":
+    """Answer the station's operator prompts (the manual table's, what to put on the table) from this
+    terminal, in a thread, while the block runs: when the table's prompts are the terminal's, or the
+    station has no table (nobody else would answer what to put on it)."""
+    table = devices.config.table
+    if table is not None and table.prompts != "terminal":
         yield
         return
     client = build("prompt_client", "terminal", broker=devices.broker)
@@ -247,10 +250,8 @@ def run_session(
                 raise ConfigurationError(f"give --config FILE to resume {previous.id} on its station")
         devices: StationDevices | None = None
         if plan.needs and sim:
-            # what the session needs in the cell (a ruler on the table): the simulated operator puts it
-            setup = getattr(plan, "sim_setup", None)
-            options = dict(setup(start.params)) if setup is not None else {}
-            devices = open_sim_station(**options, **(dict(sim) if isinstance(sim, Mapping) else {}))
+            # what the session needs on the table, the session asks for; the simulated operator puts it
+            devices = open_sim_station(**(dict(sim) if isinstance(sim, Mapping) else {}))
         elif plan.needs:
             assert cfg is not None  # checked above
             devices = build_station(cfg)

@@ -26,6 +26,10 @@ Two optional methods:
 * ``check_progress(params, ctx, captures)``: live gates, called once each step is stored and measured;
   it raises ``GateError`` to stop the session at once when what was measured cannot be right.
 
+And a declaration: ``table_content(params)`` says what must lie on the X-Y table (``"cross"``,
+``"ruler"``, ``"target"`` or None); the runner asks the operator for it before pre-flight
+(``station.table_content``).
+
 Offline plans (``sweep``, ``reanalyse``) have no device actions: their steps carry a :class:`Compute`.
 Plans never touch a concrete driver; the runner executes the actions (architecture: plans and the
 runner see devices only through ``station.devices``).

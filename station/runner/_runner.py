@@ -39,6 +39,7 @@ from station.runner._states import (
 from station.runner._store import StepRun, StorePipeline
 from station.scale_preflight import ScalePreflight
 from station.selftest_status import attach_to_session, robot_identity
+from station.table_content import place_for_session
 from station.vision import MeasureParams
 
 log = logging.getLogger("station.runner")
@@ -242,6 +243,7 @@ class SessionRunner:
                     route, problems = route_to_reference(
                         self.plan, self.params, ctx, self.devices, self.record, prelude
                     )
+                    self._place_on_table(route + prelude + steps, problems)
                     self._preflight(route + prelude + steps, problems)
                     for step in route + prelude + steps:
                         self.control.safe_point(self.store.drain)
@@ -344,11 +346,29 @@ class SessionRunner:
         if check is not None:
             check(self.params, ctx, captures)
 
+    def _place_on_table(self, steps: list[Step], found: list[str]) -> None:
+        """What the plan needs on the X-Y table, there before the scale check grabs a frame
+        (``station.table_content``). Before the operator is asked for it, the checks that need no frame:
+        a session that cannot run asks nobody for anything (and the request that started it is refused)."""
+
+        def checked() -> None:
+            self._report(steps, find_problems(steps, self.devices, found))
+
+        place_for_session(
+            self.plan, self.params, self.devices, self.record, self.journal.emit, before_asking=checked
+        )
+
     def _preflight(self, steps: list[Step], found: list[str]) -> None:
         """Every problem at once, before anything moves (``station.runner._preflight``)."""
         if self.devices is not None:
             found = [*found, *self._scale.before_motion()]  # the camera model and distance against the groove
         problems = find_problems(steps, self.devices, found)
+        self._report(steps, problems, always=True)
+
+    def _report(self, steps: list[Step], problems: list[str], *, always: bool = False) -> None:
+        """The ``preflight`` event (when ``always`` or there are problems); ``PreflightError`` on problems."""
+        if not (always or problems):
+            return
         planned = self.counter.total
         # ``steps``: every step checked (the route and a resume's prelude included); ``plan_steps``: the
         # plan's over the whole session, which progress counts

@@ -43,9 +43,12 @@ TEACH_WHATS = ("reference", "artifact", "sensor-mount")
 def with_taught(config: StationConfig, taught: StationConfig) -> StationConfig:
     """``config`` with the taught values of ``taught`` (the configuration file as written): the reference
     pose, ``[calibration]`` (artifacts, normals, turns, the optics' nominal values) and the distance
-    sensor mount's translation and rotation. The devices' own settings (ports, drivers, safety, the
-    sensor head's body) stay ``config``'s."""
+    sensor mount's translation and rotation, and the camera model (``[camera] camera_model``: what the
+    camera's calibration writes and later sessions read). The devices' own settings (ports, drivers,
+    safety, the sensor head's body) stay ``config``'s."""
     update: dict[str, Any] = {}
+    if taught.camera.camera_model is not None:
+        update["camera"] = config.camera.model_copy(update={"camera_model": taught.camera.camera_model})
     if config.robot is not None and taught.robot is not None:
         update["robot"] = config.robot.model_copy(
             update={"reference_joints_deg": taught.robot.reference_joints_deg}

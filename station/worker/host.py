@@ -249,8 +249,8 @@ class SessionHost(ArmTasks):
                 if e.type == "preflight":
                     problems.extend(str(p) for p in e.data.get("problems", []))
                     checked.set()
-                elif e.type == "state" and e.data.get("state") in FINAL_STATES:
-                    checked.set()
+                elif e.type == "prompt_raised" or (e.type == "state" and e.data.get("state") in FINAL_STATES):
+                    checked.set()  # ended, or a person is asked first (what to put on the table)
 
             unsubscribe = runner.subscribe(on_event)
             runner.create()
@@ -259,7 +259,8 @@ class SessionHost(ArmTasks):
             self._thread = thread
             thread.start()
         # the answer waits for pre-flight (devices connected, every motion checked; nothing moved yet), so
-        # that out-of-limit targets are refused with the request, and shows the session under way
+        # that out-of-limit targets are refused with the request, and shows the session under way; or, when
+        # the operator is asked first (checks that need no frame passed), shows it awaiting the operator
         while not checked.wait(0.05) and thread.is_alive():
             pass
         unsubscribe()

@@ -1,8 +1,9 @@
 """``POST /api/v1/sessions`` with kind ``camera-calibration`` on the simulated station: the typed results,
 and a bad parameter refused before anything moves.
 
-A service opens its simulated station once, so what its table carries is chosen when it starts (the
-``calibration_target`` sim option); ``station run --sim`` asks the plan (``sim_setup``) per session."""
+The session asks the operator to put the calibration target on the X-Y table before its pre-flight; the
+served station's simulated operator does (after a cross and a ruler validation on one served station:
+``tests/api/test_table_content_api.py``)."""
 
 from __future__ import annotations
 
@@ -24,12 +25,15 @@ SMALL = {
 
 @pytest.mark.timeout(180)
 def test_a_camera_calibration_runs_through_the_api(make_served: ServeFactory) -> None:
-    served = make_served(calibration_target=True, time_scale=1000.0)
+    served = make_served(time_scale=1000.0)  # the cross on its table
     with served.client() as c:
         r = c.post("/api/v1/sessions", json={"kind": "camera-calibration", "params": SMALL})
         assert r.status_code == 201, r.text
         final = wait_final(c, r.json()["id"])
         assert final["state"] == "succeeded", final.get("error")
+        asked = [e.data for e in served.service.record.events(final["id"]) if e.type == "table_content"]
+        assert asked[0]["content"] == "target"
+        assert asked[0]["asked"] is True
         results = final["results"]
         for name in ("fx", "fy", "cx", "cy"):
             assert results[name]["sigma"] > 0

@@ -28,6 +28,25 @@ def next_prompt(c: httpx.Client, seen: set[str]) -> dict[str, Any] | None:
         time.sleep(0.02)
 
 
+def put_on_table(c: httpx.Client, sid: str, seen: set[str], content: str = "cross") -> None:
+    """Answer the session's first prompt: what to put on the X-Y table (the station knows nothing yet)."""
+    p = next_prompt(c, seen)
+    assert p is not None
+    seen.add(p["id"])
+    assert p["kind"] == "table_content"
+    assert p["fields"] == []
+    assert p["details"]["content"] == content
+    assert p["details"]["was"] == "unknown"
+    assert c.get(f"/api/v1/sessions/{sid}").json()["state"] == "awaiting_operator"
+    ok = c.post(f"/api/v1/prompt/{p['id']}/confirm", json={})
+    assert ok.status_code == 200, ok.text
+
+
+def table_content(host: SessionHost) -> str:
+    """What lies on the simulated world's X-Y table (in the station's worker process)."""
+    return str(host.devices.truth.world.table_content)
+
+
 def table_readings_mm(host: SessionHost) -> tuple[float, float]:
     """The simulated world's micrometer readings (in the station's worker process)."""
     x_mm, y_mm = host.devices.truth.world.table_readings_mm()
@@ -46,6 +65,7 @@ def test_a_person_answers_every_prompt_and_the_artifact_moves(make_served: Serve
         assert c.get("/api/v1/prompt").status_code == 204
         sid = c.post("/api/v1/sessions", json=VALIDATION).json()["id"]
         seen: set[str] = set()
+        put_on_table(c, sid, seen)
         answered = 0
         said: list[tuple[int, int, str]] = []
         while (p := next_prompt(c, seen)) is not None:
@@ -95,8 +115,11 @@ def test_cancelling_the_prompt_ends_the_session(make_served: ServeFactory) -> No
     served = make_served(manual=True)
     with served.client() as c:
         sid = c.post("/api/v1/sessions", json=VALIDATION).json()["id"]
-        p = next_prompt(c, set())
+        seen: set[str] = set()
+        put_on_table(c, sid, seen)
+        p = next_prompt(c, seen)
         assert p is not None
+        assert p["kind"] == "table.move"
         r = c.post(f"/api/v1/prompt/{p['id']}/cancel", json={"reason": "cannot reach the table"})
         assert r.status_code == 200
         assert r.json()["outcome"] == "cancelled"
@@ -113,3 +136,27 @@ def test_abort_cancels_the_open_prompt(make_served: ServeFactory) -> None:
         assert c.post(f"/api/v1/sessions/{sid}/actions", json={"action": "abort"}).status_code == 201
         assert wait_final(c, sid)["state"] == "aborted"
         assert c.get("/api/v1/prompt").status_code == 204
+
+
+def test_declining_what_to_put_on_the_table_ends_the_session_with_what_to_do(
+    make_served: ServeFactory,
+) -> None:
+    served = make_served(manual=True)
+    ruler = {"kind": "validation", "params": {"artifact": "ruler", "pattern_um": PATTERN}}
+    with served.client() as c:
+        sid = c.post("/api/v1/sessions", json=ruler).json()["id"]
+        p = next_prompt(c, set())
+        assert p is not None
+        assert p["kind"] == "table_content"
+        assert p["message"].startswith("Put the ruler on the X-Y table")
+        r = c.post(f"/api/v1/prompt/{p['id']}/cancel", json={"reason": "no ruler at hand"})
+        assert r.status_code == 200
+        final = wait_final(c, sid)
+    assert final["state"] == "failed"
+    assert "the operator declined to put the ruler on the X-Y table (no ruler at hand)" in final["error"]
+    assert "put the ruler on the X-Y table, then start the session again" in final["error"]
+    assert served.service.in_worker(table_content) == "cross"  # nothing was put there
+    types = [e.type for e in served.service.record.events(sid, limit=10_000)]
+    assert "preflight" not in types
+    assert "table_content" not in types
+    assert served.service.record.captures(sid) == []

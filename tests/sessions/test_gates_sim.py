@@ -24,6 +24,7 @@ from typing import Any
 import pytest
 
 from sim.artifact import ArtifactSpec
+from sim.operator import table_content_asked
 from sim.station import SIM_TABLE_ORIGIN_IN, build_sim_station
 from sim.world import INCH_MM, WorldSpec
 from station import scale_calibration as scal
@@ -82,6 +83,11 @@ class FaultyOperator:
             self._answer(prompt)
 
     def _answer(self, prompt: Prompt) -> None:
+        content = table_content_asked(prompt)
+        if content is not None:  # what to put on the table: that, as the simulated operator does
+            self.sim.world.place_on_table(content)
+            self.broker.confirm(prompt.id, by="test-operator")
+            return
         asked = {f.name: float(f.requested or 0.0) for f in prompt.fields}
         x_mm = (asked["x_in"] - SIM_TABLE_ORIGIN_IN[0]) * INCH_MM
         y_mm = (asked["y_in"] - SIM_TABLE_ORIGIN_IN[1]) * INCH_MM

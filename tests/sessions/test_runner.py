@@ -52,7 +52,9 @@ def test_repeatability_on_fakes_captures_every_cycle_and_computes_rp(
     # every motion went through move_joints, and the arm ends at the reference
     assert fake.robot.calls_of("set_speed") == [(80,)]
     assert tuple(fake.robot.joints) == REF
-    assert log.states() == ["running", "succeeded"]
+    # before pre-flight the session asked for the cross on the table (the fake's operator confirmed it)
+    assert log.states() == ["running", "awaiting_operator", "running", "succeeded"]
+    assert [e.data["content"] for e in log.of("table_content")] == ["cross"]
     assert all(s.state == "done" for s in record.steps(sid))
     assert r.progress().done == r.progress().total == 2 * (1 + 1 + 4)
 
@@ -140,7 +142,8 @@ def test_pause_waits_at_a_safe_point_and_resume_continues(record: Record, fake: 
     r.resume()
     thread.join(60)
     assert r.state is SessionState.SUCCEEDED
-    assert log.states() == ["running", "pausing", "paused", "running", "succeeded"]
+    asked = ["running", "awaiting_operator"]  # the cross on the table, confirmed before pre-flight
+    assert log.states() == [*asked, "running", "pausing", "paused", "running", "succeeded"]
 
 
 def test_stop_finishes_the_step_and_returns_to_the_reference(record: Record, fake: FakeStation) -> None:

@@ -18,6 +18,10 @@ export function onAnswered(fn) {
 export const shownPrompt = () => shown;
 
 function moveText(d) {
+  if (d.content !== undefined) {
+    const was = d.was === "unknown" ? "The station does not know what lies there now." : `The station last knew the ${d.was} there.`;
+    return `${was} The session goes on once you confirm; nothing moves before.`;
+  }
   if (d.purpose === "resume_check") {
     const then = d.move === "overshoot" ? " First the overshoot before it, to take up the backlash." : "";
     return `The last confirmed position again, after the interruption: the session continues only if the camera measures it where it did before.${then}`;
@@ -31,6 +35,7 @@ function moveText(d) {
 
 function title(p) {
   const d = p.details || {};
+  if (p.kind === "table_content") return "Operator: what lies on the X-Y table";
   if (d.position !== undefined && d.positions !== undefined) {
     const which = `position ${num(Number(d.position))} of ${num(Number(d.positions))}`;
     if (d.purpose === "resume_check") return `Operator: ${which} again (the resume's check)`;

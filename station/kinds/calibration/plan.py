@@ -102,6 +102,11 @@ class CalibrationPlan:
     Params = CalibrationParams
     needs = frozenset({"robot", "camera", "distance_sensor"})
 
+    def table_content(self, params: CalibrationParams) -> str | None:
+        """The artifact's cross on the X-Y table when the session visits it (placement 0, the table's
+        artifact; default: every placement), else nothing in particular (``station.table_content``)."""
+        return "cross" if params.placements is None or 0 in params.placements else None
+
     def scale_check(self, params: CalibrationParams, devices: Any) -> str:
         """``station.scale_preflight``'s mode: a session along the cell's rulers identifies the camera's
         magnification itself (and its gate compares it with the groove widths), so a camera model that

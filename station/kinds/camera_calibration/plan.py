@@ -260,9 +260,9 @@ class CameraCalibrationPlan:
     #: the pre-flight scale check compares with the camera model, which this session makes
     scale_check = "skip"
 
-    def sim_setup(self, params: CameraCalibrationParams) -> dict[str, Any]:
-        """The simulated operator puts the calibration target on the table, in the artifact's place."""
-        return {"calibration_target": True}
+    def table_content(self, params: CameraCalibrationParams) -> str:
+        """The calibration target on the X-Y table, in the artifact's place (``station.table_content``)."""
+        return "target"
 
     def cell_from_config(self, config: Mapping[str, Any], measure_params: Any) -> CameraCell | None:
         return camera_cell_from_config(config)

@@ -134,6 +134,11 @@ class RepeatabilityPlan:
     Params = RepeatabilityParams
     needs = frozenset({"robot", "camera"})
 
+    def table_content(self, params: RepeatabilityParams) -> str:
+        """The artifact's cross on the X-Y table: the camera measures its crossing
+        (``station.table_content``)."""
+        return "cross"
+
     def _reference(self, params: RepeatabilityParams, ctx: PlanContext) -> tuple[float, ...]:
         ref = params.reference_joints_deg or ctx.reference_joints_deg
         if ref is None:

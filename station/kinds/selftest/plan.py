@@ -94,6 +94,11 @@ class SelftestPlan:
     Params = SelftestParams
     needs = frozenset({"robot", "camera"})
 
+    def table_content(self, params: SelftestParams) -> str:
+        """The artifact's cross on the X-Y table: the directions check measures its crossing
+        (``station.table_content``)."""
+        return "cross"
+
     def steps(self, params: SelftestParams, ctx: PlanContext) -> Iterator[Step]:
         # the speed set first makes pre-flight check the arm (power, homing, the stop latch, the cap)
         actions = (SetSpeed(int(HALT_SPEED_PCT)), DeviceCheck(_procedure(params.checks), "self-test"))

@@ -143,10 +143,10 @@ class ValidationPlan:
             yield Step(i, f"position {i}", tuple(actions), meta)
             last = (x, y)
 
-    def sim_setup(self, params: ValidationParams) -> dict[str, Any]:
-        """What the simulated station must hold for these parameters: a ruler on its table when the
-        validation is made with one (``build_sim_station``'s ``table_artifact``); nothing for the cross."""
-        return {"table_artifact": RULER} if params.artifact == RULER else {}
+    def table_content(self, params: ValidationParams) -> str:
+        """What must lie on the X-Y table (``station.table_content``): a ruler for a validation made with
+        one, else the artifact's cross."""
+        return "ruler" if params.artifact == RULER else "cross"
 
     def reference_pose(self, params: ValidationParams, ctx: PlanContext) -> ReferencePose | None:
         """The arm at the station's reference pose, over the table's artifact; never moved by a validation

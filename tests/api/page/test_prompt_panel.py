@@ -25,7 +25,20 @@ def test_the_prompt_leaves_the_controls_usable_and_cancel_asks_first(
     visit = open_page(browser, served.base)
     page = visit.page
     sid = start_from_form(visit, "validation", {"pattern_um": PATTERN})
+    # first the station asks for the artifact's cross on the X-Y table (it knows nothing of it yet)
     page.wait_for_function(OPEN)
+    visit.wait_state("awaiting_operator")
+    assert page.text_content("#prompt-title") == "Operator: what lies on the X-Y table"
+    message = page.text_content("#prompt-message") or ""
+    assert message.startswith("Put the artifact's cross on the X-Y table")
+    assert "does not know what lies there" in (page.text_content("#prompt-move") or "")
+    first = page.get_attribute("#prompt-panel", "data-prompt-id")
+    page.click("#prompt-confirm")
+    page.wait_for_function(
+        "id => !document.querySelector('#prompt-panel').hidden "
+        "&& document.querySelector('#prompt-panel').dataset.promptId !== id",
+        arg=first,
+    )
     visit.wait_state("awaiting_operator")
     # nothing modal: no open <dialog>, and the session's controls take real clicks (Playwright refuses to
     # click an element another covers, or one a modal dialog makes inert)

@@ -9,11 +9,10 @@ from pydantic import TypeAdapter
 from drivers.crs_a465 import MotionGuard, SafetyLimits, build_robot
 from sim.station import SIM_SENSOR_MOUNT, build_sim_station, sim_camera_mount, sim_safety
 from sim.world import World
-from station.config import DistanceSensorConfig, robot_safety_fields
 from station.devices import MotionRejectedError
 from station.keepout import CarriedBody, KeepOut, KeepOutBox, KeepOutCylinder, volume_distance
 from station.kinematics import Kinematics
-from station.mounts import rotation_xyz_deg
+from station.mounts import robot_safety_fields, rotation_xyz_deg
 
 # Both ends clear of every fixture; joint 1's sweep between them carries the camera body through the
 # plate of the simulated cell's bench artifact 2 (checked independently below).
@@ -23,9 +22,7 @@ SWEEP = (1, 24.0)
 
 def sim_limits() -> SafetyLimits:
     world = World()
-    fields = robot_safety_fields(
-        sim_safety(world), sim_camera_mount(world), DistanceSensorConfig(driver="sim", mount=SIM_SENSOR_MOUNT)
-    )
+    fields = robot_safety_fields(sim_safety(world), sim_camera_mount(world), SIM_SENSOR_MOUNT)
     return SafetyLimits(**fields)
 
 
