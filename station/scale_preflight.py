@@ -7,9 +7,11 @@ pixel_mm`` and ``working_distance_mm``) at the distance in use (the distance sen
 mount, else the working distance), for the artifact's width (the station's scale calibration, else the
 drawing's 1/32 in, +0/-0.002 in). Beyond :data:`~station.camcal.SCALE_CHECK_LIMIT` (0.2 %) the session
 is refused with what to do. Where the crossing is not in view before the first move (a session that
-routes the arm to it), the check is made on the session's first measured capture instead, and fails the
-session there; a plan that only warns is always checked on its first capture (no frame of its own).
-A camera model made for another image size than the camera's frames is refused outright.
+routes the arm to it), or the arm is away from the reference pose (where a previous session left it: the
+camera may see the grooves askew, foreshortened), the check is made on the session's first measured
+capture instead, and fails the session there; a plan that only warns is always checked on its first
+capture (no frame of its own). A camera model made for another image size than the camera's frames is
+refused outright.
 
 A plan says how the check applies to it with an optional ``scale_check`` attribute: ``"fail"`` (the
 default), ``"warn"`` (a validation, the session that measures the artifact's width: a disagreement is
@@ -29,6 +31,7 @@ from typing import Any, Literal
 import numpy as np
 import numpy.typing as npt
 
+from station.arm_route import at_pose
 from station.camcal import SCALE_CHECK_LIMIT, ScaleCheckError, check_scale, distance_from_sensor
 from station.camera_model import CameraIntrinsics, CameraModelError, check_image_size, read_camera_model
 from station.config import StationDevices
@@ -47,6 +50,23 @@ Emit = Callable[[str, dict[str, Any]], None]
 
 DRAWING_TOLERANCE_MM = (-0.0508, 0.0)
 """How far below and above the drawing's 1/32 in the grooves may be: +0/-0.002 in (mm)."""
+
+
+SQUARE_TOLERANCE_DEG = 1.0
+"""The pre-flight checks the frame where the arm is only when every joint is within this of the session's
+reference pose (the camera square to the artifact: a tilt of 1 deg narrows the grooves by 0.015 %, of
+12 deg by 2.2 %); elsewhere (where the last session left it) the check waits for the first capture."""
+
+
+def _at_reference(devices: StationDevices) -> bool:
+    robot, reference = devices.robot, devices.reference_joints_deg
+    if robot is None or reference is None:
+        return True  # no arm: the camera looks as it was set up to
+    try:
+        here = robot.where().commanded_joints_deg
+    except DeviceError:
+        return False  # the session's own moves will say what is wrong; the check waits for its capture
+    return at_pose(here, reference, SQUARE_TOLERANCE_DEG)
 
 
 def scale_check_mode(plan: Plan, params: Any = None, devices: StationDevices | None = None) -> Mode:
@@ -122,6 +142,9 @@ class ScalePreflight:
             return []
         if self._mode == "warn":
             self.pending = True  # a warning need not stop anything: its first capture, no frame of its own
+            return []
+        if not _at_reference(devices):
+            self.pending = True  # the camera may see the artifact askew from here: its first capture
             return []
         try:
             frame = devices.camera.grab()

@@ -7,6 +7,7 @@ written from the nominal optics is right and one 1 % short is wrong by exactly 1
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -19,10 +20,12 @@ from sim.station import build_sim_station
 from station.camera_model import CameraIntrinsics, write_camera_model
 from station.config import StationDevices
 from station.kinds import get_plan
+from station.kinematics import Kinematics
 from station.plans import parse_params
 from station.record import EventRow, Record
 from station.runner import SessionRunner, SessionState
 from station.scale_preflight import scale_check_mode
+from station.teach import pose_to_see
 
 
 @pytest.fixture
@@ -47,10 +50,12 @@ def scaled(model: CameraIntrinsics, factor: float) -> CameraIntrinsics:
     return CameraIntrinsics(K, model.dist_coeffs, model.image_size)
 
 
-def repeatability(record: Record, devices: StationDevices) -> tuple[SessionRunner, list[EventRow]]:
+def repeatability(
+    record: Record, devices: StationDevices, scale_calibration: dict[str, Any] | None = None
+) -> tuple[SessionRunner, list[EventRow]]:
     plan = get_plan("repeatability")
     params = parse_params(plan, {"cycles": 2, "warmup_cycles": 0, "joints": [1]})
-    runner = SessionRunner(record, plan, params, devices=devices)
+    runner = SessionRunner(record, plan, params, devices=devices, scale_calibration=scale_calibration)
     events: list[EventRow] = []
     runner.subscribe(events.append)
     robot = devices.robot
@@ -212,3 +217,30 @@ def test_a_calibration_along_the_rulers_only_warns_one_without_them_is_refused()
         assert scale_check_mode(get_plan("validation"), None, devices) == "warn"
     finally:
         devices.close_owned()
+
+
+def test_an_arm_left_askew_defers_the_check_to_the_first_capture(record: Record, tmp_path: Path) -> None:
+    """Where the last session left the arm (a camera calibration's tilted view), the camera sees the cross
+    12 deg askew: one groove looks 2 % narrow, beyond a scale calibration's width. The check waits for the
+    session's first capture, square at the reference pose, instead of refusing a right model."""
+    devices = with_model(build_sim_station(seed=3), tmp_path / "camera.json", nominal_intrinsics())
+    robot, reference = devices.robot, devices.reference_joints_deg
+    assert robot is not None
+    assert reference is not None
+    nominal = Kinematics(tool=devices.config.camera_mount().matrix())
+    crossing = devices.truth.world.artifact_poses()[0][:3, 3]
+    tilt = math.radians(12.0)
+    askew = pose_to_see(reference, nominal, crossing, 68.0, normal=(0.0, math.sin(tilt), math.cos(tilt)))
+    robot.connect()
+    try:
+        robot.move_joints([round(float(v), 3) for v in askew])
+        robot.wait_settled()
+    finally:
+        robot.close()
+    width = {"groove_width_mm": 25.4 / 32, "u_mm": 0.0004, "session_id": "v1"}
+    runner, events = repeatability(record, devices, width)
+    assert runner.state is SessionState.SUCCEEDED, runner.error
+    (check,) = of(events, "scale_check")
+    assert check["passed"] is True
+    assert check["where"].startswith("capture ")
+    assert abs(check["disagreement"]) < 0.002
