@@ -20,6 +20,7 @@ from station.camcal._errors import (
     TargetNotFoundError,
     TooFewViewsError,
 )
+from station.camcal._follow import follow_target
 from station.camcal._heights import HeightScale, SensorReading, height_scale
 from station.camcal._result import AGREE_SIGMA, FocalScale, IntrinsicsCalibration, ViewDiagnostics
 from station.camcal._scale import SCALE_CHECK_LIMIT, ScaleCheck, check_scale, distance_from_sensor
@@ -54,6 +55,7 @@ __all__ = [
     "check_scale",
     "detect_target",
     "distance_from_sensor",
+    "follow_target",
     "height_scale",
     "plan_views",
     "refine_corners",

@@ -117,6 +117,7 @@ def calibrate_intrinsics(
     reading_u_mm: float = 0.001,
     sensor_scale_u_rel: float = 0.0,
     source: dict[str, Any] | None = None,
+    pose_only: Sequence[bool] | None = None,
 ) -> IntrinsicsCalibration:
     """Calibrate the camera's intrinsics from views of ``target``.
 
@@ -141,6 +142,11 @@ def calibrate_intrinsics(
         heights used (its linearity; the twin's is exact, a real head's comes from its certificate).
     source : dict, optional
         More provenance for the model's ``source`` (a session id, the date).
+    pose_only : sequence of bool, optional
+        Views that take no part in the intrinsics' fit: only their poses are found (``cv2.solvePnP`` with
+        the fitted intrinsics), for the heights. The square views followed into the blur
+        (``follow_target``): their corners are noisier than the in-focus views' and would only inflate
+        the re-projection error and the uncertainties OpenCV scales by it.
 
     Returns
     -------
@@ -162,13 +168,22 @@ def calibrate_intrinsics(
         raise TooFewViewsError(
             f"{len(readings)} sensor readings for {len(detections)} views: give one per view"
         )
-    obj = [d.object_mm.astype(np.float32) for d in detections]
-    img = [d.corners_px.astype(np.float32) for d in detections]
+    only = [False] * len(detections) if pose_only is None else [bool(p) for p in pose_only]
+    if len(only) != len(detections):
+        raise ValueError("pose_only needs one entry per view")
+    fitted_idx = [i for i, p in enumerate(only) if not p]
+    if len(fitted_idx) < MIN_VIEWS:
+        raise TooFewViewsError(
+            f"{len(fitted_idx)} views in focus for the intrinsics' fit; a calibration needs at least "
+            f"{MIN_VIEWS}, tilted in different directions"
+        )
+    obj = [detections[i].object_mm.astype(np.float32) for i in fitted_idx]
+    img = [detections[i].corners_px.astype(np.float32) for i in fitted_idx]
     flags = options.flags()
     K, dist, rvecs, tvecs, std = _fit(
         obj, img, (width, height), guess.camera_matrix, guess.dist_coeffs, flags
     )
-    kept = [np.ones(d.count, dtype=bool) for d in detections]
+    kept = [np.ones(detections[i].count, dtype=bool) for i in fitted_idx]
     if options.outlier_px > 0:
         errors = [_errors(o, p, r, t, K, dist) for o, p, r, t in zip(obj, img, rvecs, tvecs, strict=True)]
         kept = [e <= options.outlier_px for e in errors]
@@ -187,7 +202,8 @@ def calibrate_intrinsics(
     sigma = {name: float(std[_INTRINSIC_NAMES.index(name)]) for name in options.fitted()}
     focal = FocalScale(float(K[0, 0]), sigma["fx"] / float(K[0, 0]), None)
     if readings is not None:
-        poses = [_pose(r, t) for r, t in zip(rvecs, tvecs, strict=True)]
+        views_now = _all_views(detections, fitted_idx, obj, img, rvecs, tvecs, kept, K, dist, options)
+        poses = [_pose(v[2], v[3]) for v in views_now]
         scale = height_scale(
             [p[1] for p in poses],
             [p[0] for p in poses],
@@ -206,10 +222,12 @@ def calibrate_intrinsics(
         _plausible(K, guess, width, height)
         sigma = {name: float(std[_INTRINSIC_NAMES.index(name)]) for name in options.fitted()}
         sigma["fx"], sigma["fy"] = float(K[0, 0]) * focal.u_rel, float(K[1, 1]) * focal.u_rel
+    everything = _all_views(detections, fitted_idx, obj, img, rvecs, tvecs, kept, K, dist, options)
     views, squares = [], []
-    for i, (o, p, r, t, d, k) in enumerate(zip(obj, img, rvecs, tvecs, detections, kept, strict=True)):
+    for i, (o, p, r, t, k) in enumerate(everything):
         e = _errors(o, p, r, t, K, dist)
-        squares.append(e * e)
+        if not only[i]:
+            squares.append(e * e)
         tilt, distance = _pose(r, t)
         views.append(
             ViewDiagnostics(
@@ -218,11 +236,12 @@ def calibrate_intrinsics(
                 dropped=int(k.size - k.sum()),
                 rms_px=float(np.sqrt(np.mean(e * e))),
                 max_px=float(np.max(e)),
-                coverage=d.coverage(),
+                coverage=detections[i].coverage(),
                 tilt_deg=tilt,
                 distance_mm=distance,
                 rvec=tuple(float(v) for v in np.ravel(r)),  # type: ignore[arg-type]
                 tvec_mm=tuple(float(v) for v in np.ravel(t)),  # type: ignore[arg-type]
+                pose_only=only[i],
             )
         )
     model = CameraIntrinsics(
@@ -240,6 +259,56 @@ def calibrate_intrinsics(
     )
     rms = float(np.sqrt(np.mean(np.concatenate(squares))))
     return IntrinsicsCalibration(model, rms, tuple(views), options.fitted(), focal)
+
+
+View = tuple[npt.NDArray[np.float32], npt.NDArray[np.float32], FloatArray, FloatArray, npt.NDArray[np.bool_]]
+
+
+def _all_views(
+    detections: Sequence[TargetDetection],
+    fitted_idx: list[int],
+    obj: list[npt.NDArray[np.float32]],
+    img: list[npt.NDArray[np.float32]],
+    rvecs: list[FloatArray],
+    tvecs: list[FloatArray],
+    kept: list[npt.NDArray[np.bool_]],
+    K: FloatArray,
+    dist: FloatArray,
+    options: FitOptions,
+) -> list[View]:
+    """Every view's corners used, pose and kept mask, in the detections' order: the fitted views' from the
+    fit, the pose-only views' by ``solvePnP`` with the intrinsics ``K``, ``dist`` (corners beyond the
+    outlier threshold left out and the pose found again)."""
+    out: dict[int, View] = {
+        i: (o, p, r, t, k) for i, o, p, r, t, k in zip(fitted_idx, obj, img, rvecs, tvecs, kept, strict=True)
+    }
+    for i, d in enumerate(detections):
+        if i in out:
+            continue
+        o, p = d.object_mm.astype(np.float32), d.corners_px.astype(np.float32)
+        r, t = _solve_pose(o, p, K, dist)
+        k = np.ones(d.count, dtype=bool)
+        if options.outlier_px > 0:
+            k = _errors(o, p, r, t, K, dist) <= options.outlier_px
+            if int(k.sum()) < 4:
+                raise CalibrationFitError(
+                    f"view {i} keeps fewer than 4 corners within {options.outlier_px} px of its pose: "
+                    "leave it out, or take the square views nearer focus"
+                )
+            if not k.all():
+                o, p = o[k], p[k]
+                r, t = _solve_pose(o, p, K, dist)
+        out[i] = (o, p, r, t, k)
+    return [out[i] for i in range(len(detections))]
+
+
+def _solve_pose(
+    obj: npt.NDArray[np.float32], img: npt.NDArray[np.float32], K: FloatArray, dist: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    ok, r, t = cv2.solvePnP(obj, img, K, dist, flags=cv2.SOLVEPNP_ITERATIVE)
+    if not ok:
+        raise CalibrationFitError("a square view's pose could not be found: take it again")
+    return np.asarray(r, dtype=np.float64), np.asarray(t, dtype=np.float64)
 
 
 def _pose(rvec: FloatArray, tvec: FloatArray) -> tuple[float, float]:

@@ -12,6 +12,14 @@ field across the tilt; a blur that grows across a corner moves it (by the blur t
 a perfect image), and the fit reads that as perspective: measured on the twin at a physical f/4 macro's
 defocus, +0.28 % on the focal length while OpenCV's uncertainty said 0.03 % (``TARGET.md``). Square views
 have a uniform blur and no such bias.
+
+Their blur does bias the fitted distance evenly about focus: a corner refined under a symmetric blur stays
+put, but the lens's vignetting tilts the grey levels across it and the corners move by the blur squared
+times that gradient, toward the image's centre (measured on noise-free twin frames at f/4: +1.4 um of
+distance at 0.6 mm from focus, 2-3 um at 1-1.5 mm, either side). An even bias leaves the slope of
+symmetric heights alone but not the scatter about the lines, so the fit takes a common term in the square
+of the height from the middle of each orientation's readings when the heights allow it (three or more,
+and views enough to spare the degree of freedom).
 """
 
 from __future__ import annotations
@@ -49,7 +57,8 @@ class HeightScale:
     uncertainty, from the scatter about the lines (or the readings' stated uncertainty, whichever is
     larger) and the target's and the sensor's scale uncertainties; ``views`` / ``groups``: how many entered;
     ``residual_um``: the scatter of the fitted distances about the lines; ``range_mm``: the span of the
-    readings within a group, the largest.
+    readings within a group, the largest; ``curvature_um_per_mm2``: the even term in the height fitted
+    with them (None when the heights are too few for it).
     """
 
     kappa: float
@@ -58,6 +67,7 @@ class HeightScale:
     groups: int
     residual_um: float
     range_mm: float
+    curvature_um_per_mm2: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -67,7 +77,22 @@ class HeightScale:
             "groups": self.groups,
             "residual_um": self.residual_um,
             "range_mm": self.range_mm,
+            "curvature_um_per_mm2": self.curvature_um_per_mm2,
         }
+
+
+LEVEL_GAP_MM = 0.05
+"""Readings closer than this are taken at one height (the arm's jitter and the sensor's noise: microns)."""
+
+
+MIN_DOF_CURVED = 4
+"""Degrees of freedom the fit must keep for the even term to be fitted (a few views: their scatter
+alone is a poor estimate already)."""
+
+
+def _levels(readings: Sequence[float]) -> int:
+    """How many heights ``readings`` were taken at (gaps beyond :data:`LEVEL_GAP_MM` separate them)."""
+    return 1 + int(np.count_nonzero(np.diff(np.sort(np.asarray(readings))) > LEVEL_GAP_MM))
 
 
 def height_scale(
@@ -130,6 +155,13 @@ def height_scale(
         for reading, d in usable[g]:
             A[i, 0], A[i, 1 + j], y[i] = reading, 1.0, d
             i += 1
+    # the term costs a degree of freedom: only with views enough to spare one (MIN_DOF_CURVED left)
+    curved = (
+        all(_levels([r for r, _ in usable[g]]) >= 3 for g in groups) and n - A.shape[1] - 1 >= MIN_DOF_CURVED
+    )
+    if curved:
+        mid = {g: float(np.mean([r for r, _ in usable[g]])) for g in groups}
+        A = np.column_stack([A, [(r - mid[g]) ** 2 for g in groups for r, _ in usable[g]]])
     sol, *_ = np.linalg.lstsq(A, y, rcond=None)
     kappa = float(sol[0])
     resid = y - A @ sol
@@ -141,4 +173,5 @@ def height_scale(
     sigma = max(spread, kappa * reading_u_mm) * math.sqrt(sxx)
     u_rel = math.sqrt((sigma / kappa) ** 2 + pitch_u_rel**2 + sensor_scale_u_rel**2)
     span = max(float(np.ptp([r for r, _ in usable[g]])) for g in groups)
-    return HeightScale(kappa, u_rel, n, len(groups), spread * 1000.0, span)
+    curvature = float(sol[-1]) * 1000.0 if curved else None
+    return HeightScale(kappa, u_rel, n, len(groups), spread * 1000.0, span, curvature)

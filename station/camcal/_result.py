@@ -22,7 +22,9 @@ class ViewDiagnostics:
     ``corners``: corners used (``dropped``: left out as outliers); ``rms_px`` / ``max_px``: their
     re-projection error; ``coverage``: share of the frame inside their hull; ``tilt_deg``: the angle
     between the target's normal and the optical axis; ``distance_mm``: from the camera's centre to the
-    target's plane along the optical axis; ``rvec`` / ``tvec_mm``: the target's pose in the camera.
+    target's plane along the optical axis; ``rvec`` / ``tvec_mm``: the target's pose in the camera;
+    ``pose_only``: the view took no part in the intrinsics' fit, only its pose was found (a square view
+    followed into the blur, for the heights).
     """
 
     index: int
@@ -35,6 +37,7 @@ class ViewDiagnostics:
     distance_mm: float
     rvec: tuple[float, float, float]
     tvec_mm: tuple[float, float, float]
+    pose_only: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -48,6 +51,7 @@ class ViewDiagnostics:
             "distance_mm": self.distance_mm,
             "rvec": list(self.rvec),
             "tvec_mm": list(self.tvec_mm),
+            "pose_only": self.pose_only,
         }
 
 

@@ -75,27 +75,37 @@ class ViewSpec:
 def plan_views(
     *,
     square_turns_deg: Sequence[float] = (0.0, 90.0, 180.0, 270.0),
-    heights_mm: Sequence[float] = (-0.6, -0.3, 0.0, 0.3, 0.6),
+    heights_mm: Sequence[float] = (0.0, -1.5, 1.5),
+    square_passes: int = 26,
     tilts_deg: Sequence[float] = (12.0,),
-    azimuths: int = 8,
-    tilted_turns_deg: Sequence[float] = (0.0, 90.0),
+    azimuths: int = 24,
+    tilted_turns_deg: Sequence[float] = (0.0, 45.0, 90.0, 135.0),
 ) -> list[ViewSpec]:
     """The views of a camera calibration: square ones at several heights, tilted ones around.
 
-    Each square turn is one group taken at every height (the focal length's scale: the distance sensor
-    reads each height); each tilt at each of ``azimuths`` directions and each turn is a group of one view
-    in focus (the principal point and the distortion). The heights must stay within the depth of field
-    that lets the markers be read (+/-0.6 mm for the standard target behind an f/4 1X macro lens:
-    ``TARGET.md``). Returned grouped, in an order a robot takes with little motion.
+    Each square turn is one group: its heights in the order given, then the heights other than the one
+    nearest focus again, until they are taken ``square_passes`` times: each view is a move of the arm,
+    whose jitter the passes average down (the distance sensor reads each height). The square views out
+    of the markers' depth of field are followed from the view nearest focus
+    (``station.camcal.follow_target``), so the default starts each turn in focus. Each tilt at each of
+    ``azimuths`` directions and each turn is a group of one view in focus (the principal point and the
+    distortion).
+    The heights must stay where the corners can be followed (+/-1.5 mm for the standard target behind an
+    f/4 1X macro lens: ``TARGET.md``). Returned grouped, in an order a robot takes with little motion.
     """
     if azimuths < 1:
         raise ValueError(f"azimuths must be >= 1, got {azimuths}")
+    if square_passes < 1:
+        raise ValueError(f"square_passes must be >= 1, got {square_passes}")
     if not heights_mm:
         raise ValueError("heights_mm needs at least one value")
+    focus = min(heights_mm, key=abs)
+    others = [h for h in heights_mm if h != focus]
     views: list[ViewSpec] = []
     group = 0
     for turn in square_turns_deg:
-        views += [ViewSpec(0.0, 0.0, turn, h, group=group) for h in heights_mm]
+        heights = [*heights_mm, *(others * (square_passes - 1))]
+        views += [ViewSpec(0.0, 0.0, turn, h, group=group) for h in heights]
         group += 1
     for tilt in tilts_deg:
         for k in range(azimuths):

@@ -27,7 +27,13 @@ from station.camera_model import CameraIntrinsics
 MOUNT = np.eye(4)
 MOUNT[:3, 3] = (30.0, 0.0, 0.0)
 # A small session: 2 square turns at 3 heights (the sensor reads each) and 8 views tilted 12 deg.
-VIEWS = plan_views(square_turns_deg=(0.0, 90.0), heights_mm=(-0.6, 0.0, 0.6), azimuths=4)
+VIEWS = plan_views(
+    square_turns_deg=(0.0, 90.0),
+    heights_mm=(-0.6, 0.0, 0.6),
+    square_passes=1,
+    azimuths=4,
+    tilted_turns_deg=(0.0, 90.0),
+)
 TRUTH = true_intrinsics(1)
 
 Session = tuple[list[TargetDetection], list[SensorReading | None]]
@@ -176,3 +182,28 @@ def test_fit_options_free_what_they_say() -> None:
         FitOptions(radial=4)
     with pytest.raises(ValueError, match="outlier_px"):
         FitOptions(outlier_px=math.nan)
+
+
+@pytest.mark.slow
+def test_pose_only_views_enter_the_heights_but_not_the_intrinsics_fit(in_focus: Session) -> None:
+    detections, readings = in_focus
+    followed = [v.tilt_deg == 0.0 and v.height_mm != 0.0 for v in VIEWS]
+    # a followed view's corners spoiled by 0.3 px of noise: the intrinsics' fit must not see them
+    rng = np.random.default_rng(4)
+    noisy = [
+        replace(d, corners_px=d.corners_px + rng.normal(0.0, 0.15, d.corners_px.shape)) if f else d
+        for d, f in zip(detections, followed, strict=True)
+    ]
+    clean = calibrate_intrinsics(detections, guess=nominal_intrinsics(), readings=readings)
+    spoiled = calibrate_intrinsics(noisy, guess=nominal_intrinsics(), readings=readings)
+    cal = calibrate_intrinsics(noisy, guess=nominal_intrinsics(), readings=readings, pose_only=followed)
+    assert [v.pose_only for v in cal.views] == followed
+    assert cal.rms_px < 0.02  # the in-focus views' only (the noisy ones re-project at about 0.2 px)
+    assert min(v.rms_px for v in cal.views if v.pose_only) > 0.1
+    assert spoiled.rms_px > 0.05
+    # OpenCV's uncertainties scale with the fit's residual: the noisy views in it inflate them
+    assert cal.intrinsics.sigma["cx"] < 0.5 * spoiled.intrinsics.sigma["cx"]
+    assert cal.focal.heights is not None
+    assert cal.focal.heights.views == clean.focal.heights.views  # type: ignore[union-attr]
+    with pytest.raises(TooFewViewsError, match="views in focus"):
+        calibrate_intrinsics(detections, guess=nominal_intrinsics(), pose_only=[True] * len(detections))

@@ -171,3 +171,25 @@ def test_height_scale_reads_the_focal_error_off_the_fitted_distances() -> None:
         height_scale([68.0, 68.5], [5.0, 5.0], [SensorReading(0, 70.0), SensorReading(0, 70.5)])
     with pytest.raises(ValueError, match="finite"):
         SensorReading(0, math.inf)
+
+
+def test_an_even_bias_of_the_blur_is_taken_out_of_the_scatter_not_the_slope() -> None:
+    # the blur biases the fitted distance evenly about focus (2 um at +/-1.5 mm): square views at
+    # -1.5, 0, +1.5 mm, the sensor's noise 0.6 um
+    kappa, rng = 1.003, np.random.default_rng(1)
+    readings: list[SensorReading | None] = []
+    distances: list[float] = []
+    for group in range(4):
+        for h in [0.0] + [-1.5, 1.5] * 6:
+            readings.append(SensorReading(group, 66.0 + h + 0.1 * group + rng.normal(0, 6e-4)))
+            distances.append(kappa * (68.0 + h) + 0.002 * (h / 1.5) ** 2)
+    scale = height_scale(distances, [0.0] * len(distances), readings)
+    assert scale.kappa == pytest.approx(kappa, abs=5e-5)
+    assert scale.curvature_um_per_mm2 == pytest.approx(2.0 / 1.5**2, abs=0.3)
+    assert scale.residual_um < 1.0  # the sensor's noise, not the bias (0.9 um rms without the term)
+    # two heights a turn: no room for the term, none fitted
+    two = [
+        i for i, r in enumerate(readings) if r is not None and abs(r.distance_mm - 66.0 - 0.1 * r.group) > 1
+    ]
+    only = height_scale([distances[i] for i in two], [0.0] * len(two), [readings[i] for i in two])
+    assert only.curvature_um_per_mm2 is None

@@ -43,8 +43,12 @@ def test_every_default_view_is_reachable_and_puts_the_camera_where_planned(cell:
     assert cell.reference_joints_deg is not None
     ref = np.asarray(cell.reference_joints_deg)
     views = CameraCalibrationParams().views()
-    assert len(views) == 36
+    assert len(views) == 308
+    seen: set[ViewSpec] = set()
     for planned in views:
+        if planned in seen:  # the square views' passes repeat their heights
+            continue
+        seen.add(planned)
         view, q = view_joints(cell, planned)
         assert cell.kinematics.within_limits(q)
         want = cell.kinematics.forward(ref) @ view.camera_motion(cell.working_distance_mm)
@@ -133,3 +137,38 @@ def test_a_resumed_session_goes_from_the_reference_pose_to_where_the_next_view_s
     assert moves[-1] == previous  # where step 12's own moves start
     path = np.vstack([np.asarray(cell.reference_joints_deg), np.asarray(moves)])
     assert np.abs(np.diff(path, axis=0)).max() <= cell.max_step_deg
+
+
+def test_a_square_view_below_the_last_is_approached_from_below(cell: CameraCell) -> None:
+    """Every square view of a turn is reached moving away from the target: the joints' backlash then
+    sits on one side for all of them, where it would otherwise tilt the low and the high views apart
+    (the sensor beside the axis reads the tilt as height)."""
+    from station.kinds.camera_calibration.plan import APPROACH_MM, CAMERA_CALIBRATION
+    from station.plans import MoveJoints, PlanContext
+    from station.vision import MeasureParams
+
+    params = CameraCalibrationParams(square_turns_deg=[45.0], square_passes=2, azimuths=1)
+    ctx = PlanContext(
+        measure_params=MeasureParams(), reference_joints_deg=cell.reference_joints_deg, cell=cell
+    )
+    steps = list(CAMERA_CALIBRATION.steps(params, ctx))
+    heights = [s.meta["height_mm"] for s in steps[:5]]
+    assert heights == [0.0, -1.5, 1.5, -1.5, 1.5]
+    ref = np.asarray(cell.reference_joints_deg)
+    for step in steps[1:5]:
+        moves = [a.target_deg for a in step.actions if isinstance(a, MoveJoints)]
+        view = params.views()[step.index]
+        camera = [
+            float(np.linalg.solve(cell.kinematics.forward(ref), cell.kinematics.forward(q))[2, 3])
+            for q in moves
+        ]
+        # the camera's last motion along its axis is away from the target (-z of the square pose)
+        assert camera[-1] == pytest.approx(-view.height_mm, abs=1e-3)
+        if len(moves) > 1:
+            assert camera[-2] == pytest.approx(-(view.height_mm - APPROACH_MM), abs=1e-3)
+        before = [a.target_deg for a in steps[step.index - 1].actions if isinstance(a, MoveJoints)][-1]
+        last_from = moves[-2] if len(moves) > 1 else before
+        z_from = float(
+            np.linalg.solve(cell.kinematics.forward(ref), cell.kinematics.forward(last_from))[2, 3]
+        )
+        assert z_from > camera[-1]  # came from nearer the target

@@ -82,7 +82,12 @@ def test_height_moves_along_the_tilted_axis_away_from_the_target() -> None:
 
 def test_plan_takes_square_views_at_heights_and_tilted_views_around() -> None:
     views = plan_views(
-        square_turns_deg=(0.0, 90.0), heights_mm=(-0.3, 0.0, 0.3), tilts_deg=(10.0,), azimuths=4
+        square_turns_deg=(0.0, 90.0),
+        heights_mm=(-0.3, 0.0, 0.3),
+        square_passes=1,
+        tilts_deg=(10.0,),
+        azimuths=4,
+        tilted_turns_deg=(0.0, 90.0),
     )
     assert len(views) == 2 * 3 + 4 * 2
     groups: dict[int, list[ViewSpec]] = {}
@@ -97,3 +102,13 @@ def test_plan_takes_square_views_at_heights_and_tilted_views_around() -> None:
         ViewSpec(tilt_deg=70.0)
     with pytest.raises(ValueError, match="azimuths must be >= 1"):
         plan_views(azimuths=0)
+    with pytest.raises(ValueError, match="square_passes must be >= 1"):
+        plan_views(square_passes=0)
+
+
+def test_square_views_repeat_the_heights_away_from_focus() -> None:
+    views = plan_views(square_turns_deg=(0.0,), heights_mm=(0.0, -1.5, 1.5), square_passes=3, azimuths=1)
+    square = [v.height_mm for v in views if v.tilt_deg == 0.0]
+    # in focus once (the others are followed from it), low and high three times over
+    assert square == [0.0, -1.5, 1.5, -1.5, 1.5, -1.5, 1.5]
+    assert len(plan_views()) == 4 * (1 + 2 * 26) + 96  # the defaults: TARGET.md

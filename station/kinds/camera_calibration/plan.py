@@ -31,15 +31,13 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from station.camcal import (
     CameraCalibrationError,
-    SensorReading,
-    TargetDetection,
     ViewSpec,
     calibrate_intrinsics,
-    detect_target,
     plan_views,
 )
 from station.camera_model import CameraIntrinsics
 from station.kinds.camera_calibration.analysis import Bounds, calibration_results
+from station.kinds.camera_calibration.views import find_views
 from station.kinematics import Kinematics, UnreachableError, transform
 from station.plans import (
     Capture,
@@ -62,17 +60,27 @@ TARGET = "target"
 MAX_VIEW_SWING_DEG = 30.0
 #: the twins of an unreachable tilted view: half a turn more about the axis, and 10 deg short or beyond
 TWIN_TURNS_DEG = (0.0, -10.0, 10.0)
+#: a square view lower than the one before it is approached from this far below it (mm along the optical
+#: axis): every square view is then reached moving away from the target, the joints' backlash on one side
+APPROACH_MM = 0.5
 
 
 class CameraCalibrationParams(BaseModel):
-    """Parameters of a camera calibration (defaults: ``plan_views``'s 36 views, ``TARGET.md``)."""
+    """Parameters of a camera calibration (defaults: ``plan_views``'s 308 views, ``TARGET.md``)."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     heights_mm: list[float] = Field(
-        default_factory=lambda: [-0.6, -0.3, 0.0, 0.3, 0.6],
-        description="heights of the square views along the optical axis, from focus (mm; within the "
-        "markers' depth of field, +/-0.6 mm at f/4)",
+        default_factory=lambda: [0.0, -1.5, 1.5],
+        description="heights of the square views along the optical axis, from focus (mm; the corners "
+        "are followed from the view nearest focus up to +/-1.5 mm at f/4)",
+    )
+    square_passes: int = Field(
+        26,
+        ge=1,
+        le=100,
+        description="times each square turn's heights other than the one nearest focus are taken (each "
+        "view a move of the arm: the passes average its jitter down)",
     )
     square_turns_deg: list[float] = Field(
         default_factory=lambda: [-135.0, -45.0, 45.0, 135.0],
@@ -82,9 +90,9 @@ class CameraCalibrationParams(BaseModel):
     tilts_deg: list[float] = Field(
         default_factory=lambda: [12.0], description="tilts of the tilted views (deg, each in (0, 25])"
     )
-    azimuths: int = Field(8, ge=1, le=36, description="directions of each tilt")
+    azimuths: int = Field(24, ge=1, le=36, description="directions of each tilt")
     tilted_turns_deg: list[float] = Field(
-        default_factory=lambda: [0.0, 90.0], description="turns of each tilted view (deg)"
+        default_factory=lambda: [0.0, 45.0, 90.0, 135.0], description="turns of each tilted view (deg)"
     )
     sensor_samples: int = Field(10, ge=1, le=100, description="distance readings averaged per view")
     focal_bound_pct: float = Field(
@@ -124,6 +132,7 @@ class CameraCalibrationParams(BaseModel):
         return plan_views(
             square_turns_deg=self.square_turns_deg,
             heights_mm=self.heights_mm,
+            square_passes=self.square_passes,
             tilts_deg=self.tilts_deg,
             azimuths=self.azimuths,
             tilted_turns_deg=self.tilted_turns_deg,
@@ -191,6 +200,16 @@ def _joints(cell: CameraCell, view: ViewSpec) -> tuple[float, ...] | None:
         if swing <= best_swing and cell.kinematics.within_limits(rounded, margin_deg=0.01):
             best, best_swing = rounded, swing
     return best
+
+
+def _lower_in_group(view: ViewSpec, last: ViewSpec) -> bool:
+    """A square view of the same turn as ``last``, below it: approached from below (:data:`APPROACH_MM`)."""
+    return (
+        view.tilt_deg == 0.0
+        and last.tilt_deg == 0.0
+        and last.group == view.group
+        and (view.height_mm < last.height_mm)
+    )
 
 
 def moves_between(
@@ -278,11 +297,18 @@ class CameraCalibrationPlan:
     def steps(self, params: CameraCalibrationParams, ctx: PlanContext) -> Iterator[Step]:
         cell = self._cell(ctx)
         previous = cell.reference_joints_deg
+        last: ViewSpec | None = None
         for i, planned in enumerate(params.views()):
             view, joints = view_joints(cell, planned)
             assert previous is not None  # view_joints refuses a cell without a reference pose
-            moves = [MoveJoints(q) for q in moves_between(previous, joints, cell.max_step_deg)]
-            previous = joints
+            route = [joints]
+            if last is not None and _lower_in_group(view, last):
+                route = [view_joints(cell, replace(view, height_mm=view.height_mm - APPROACH_MM))[1], joints]
+            moves = []
+            for q in route:
+                moves += [MoveJoints(m) for m in moves_between(previous, q, cell.max_step_deg)]
+                previous = q
+            last = view
             meta = {
                 ARTIFACT_KEY: TARGET,
                 "role": "camera_view",
@@ -335,21 +361,13 @@ class CameraCalibrationPlan:
             if isinstance(s.data.get("z_samples_mm"), list)
         }
         rows = {c.id: c for c in record.captures(sid)}
-        detections: list[TargetDetection] = []
-        readings: list[SensorReading | None] = []
-        missed: list[str] = []
         taken = [c for c in captures if c.meta.get(ARTIFACT_KEY) == TARGET]
-        for cap in taken:
-            try:
-                found = detect_target(record.load_image(rows[cap.capture_id]))
-            except CameraCalibrationError as exc:
-                missed.append(f"view {cap.meta.get('view')}: {exc}")
-                continue
-            detections.append(found)
-            z = samples.get(cap.step_index)
-            readings.append(SensorReading(int(cap.meta["group"]), float(np.mean(z))) if z else None)
         if not taken:
             raise PlanError("no view of the target was captured: start the calibration again")
+        views = find_views(
+            taken, lambda c: record.load_image(rows[c.capture_id]), samples, cell.working_distance_mm
+        )
+        detections, readings, missed = views.detections, views.readings, views.missed
         width, height = taken[0].width, taken[0].height
         guess = CameraIntrinsics(
             np.array(
@@ -370,6 +388,7 @@ class CameraCalibrationPlan:
                 readings=readings,
                 reading_u_mm=reading_uncertainty_mm(list(samples.values())),
                 source={"session": sid},
+                pose_only=views.followed,
             )
         except CameraCalibrationError as exc:
             raise PlanError(
