@@ -270,7 +270,6 @@ def turn_error_deg(a: float, b: float) -> float:
 # ------------------------------------------------------------------ the day
 
 
-@pytest.mark.xfail(strict=True, reason="camera calibration gate: branch i23-camcal")
 def test_day_one_from_the_drawings_to_a_calibrated_arm(tmp_path: Path) -> None:
     began = time.monotonic()
     path = tmp_path / "station.toml"
