@@ -238,19 +238,25 @@ def test_teaching_without_a_configuration_file_says_how_to_start_the_service(ser
 # ------------------------------------------------------------------ teach, with a configuration file
 
 
-def test_teaching_the_sensor_mount_and_the_reference_rewrites_the_file_with_its_comments(
-    tmp_path: Path,
-) -> None:
-    path = tmp_path / "station.toml"
+def table_only_config(path: Path, **options: Any) -> str:
+    """A lab's file at ``path`` with the table's artifact only, as drawn (its text returned)."""
     text = lab_config(
         reference=[0.0, 30.0, 60.0, 0.0, 90.0, 0.0],
         artifacts=[[482.0, 0.0, 330.0]],
         normals=[[0.0, 0.0, 1.0]],
         turns=[0.0],
         names=["table"],
-        sensor_z=2.0,
+        **options,
     )
     path.write_text(text, encoding="utf-8")
+    return text
+
+
+def test_teaching_the_sensor_mount_and_the_reference_rewrites_the_file_with_its_comments(
+    tmp_path: Path,
+) -> None:
+    path = tmp_path / "station.toml"
+    text = table_only_config(path, sensor_z=2.0)
     with served_with_config(path, tmp_path / "data", seed=3) as served, served.client() as c:
         # the keep-out carries the head where the file's mount puts it: 120 (camera) + 2 - 70 (its body)
         assert served.service.in_worker(sensor_head_z) == pytest.approx(52.0, abs=1e-9)
@@ -302,14 +308,7 @@ def test_teaching_through_a_calibration_session_that_is_not_one_is_refused_and_n
     tmp_path: Path,
 ) -> None:
     path = tmp_path / "station.toml"
-    text = lab_config(
-        reference=[0.0, 30.0, 60.0, 0.0, 90.0, 0.0],
-        artifacts=[[482.0, 0.0, 330.0]],
-        normals=[[0.0, 0.0, 1.0]],
-        turns=[0.0],
-        names=["table"],
-    )
-    path.write_text(text, encoding="utf-8")
+    text = table_only_config(path)
     with served_with_config(path, tmp_path / "data", seed=3) as served, served.client() as c:
         start = commanded(c)
         for what in TEACH:
