@@ -14,6 +14,7 @@ import json
 import signal
 import sys
 import threading
+import typing
 from collections.abc import Sequence
 from typing import Any
 
@@ -22,7 +23,7 @@ from station.commands._common import add_compute_options, compute_spec
 from station.commands._parsing import SubParsers, add_record_options
 from station.config import ConfigurationError
 from station.devices import DeviceError
-from station.kinds import KIND_NAMES, summary
+from station.kinds import KIND_NAMES, get_plan, summary
 from station.plans import PlanError
 from station.record import EventRow, RecordError, SessionLockError
 from station.resources import dumps
@@ -74,18 +75,35 @@ def register(sub: SubParsers) -> None:
     p.set_defaults(func=lambda args: run(p, args))
 
 
-def parse_params(parser: argparse.ArgumentParser, items: Sequence[str]) -> dict[str, Any]:
+def parse_params(
+    parser: argparse.ArgumentParser, items: Sequence[str], text: frozenset[str] = frozenset()
+) -> dict[str, Any]:
+    """``--param NAME=VALUE`` items: VALUE as JSON, else as the string typed; a parameter named in
+    ``text`` (the plan's string parameters) is always the string typed."""
     out: dict[str, Any] = {}
     for item in items:
-        name, sep, text = item.partition("=")
-        if not sep or not name.strip():
+        name, sep, raw = item.partition("=")
+        name = name.strip()
+        if not sep or not name:
             parser.error(f"--param {item!r}: expected NAME=VALUE")
         try:
-            value: Any = json.loads(text)
+            value: Any = raw if name in text else json.loads(raw)
         except json.JSONDecodeError:
-            value = text
-        out[name.strip()] = value
+            value = raw
+        out[name] = value
     return out
+
+
+def text_params(kind: str | None) -> frozenset[str]:
+    """The string parameters of ``kind``'s plan: a session id such as ``505e3210`` is a number to JSON."""
+    if kind is None or kind not in KIND_NAMES:
+        return frozenset()
+    fields = get_plan(kind).Params.model_fields
+    return frozenset(
+        name
+        for name, info in fields.items()
+        if info.annotation is str or str in typing.get_args(info.annotation)
+    )
 
 
 class _Progress:
@@ -140,7 +158,7 @@ def run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         usage(f"--jobs must be from 1 to {max_jobs()}, got {args.jobs}")
     try:
         compute = compute_spec(parser, args, jobs=1)
-        params = parse_params(parser, args.param)
+        params = parse_params(parser, args.param, text_params(args.kind))
     except SystemExit:
         if args.json:
             print(failed_outcome(args.kind, args.resume, "a usage error (see above)"))

@@ -11,7 +11,7 @@ import pytest
 
 from tests.api.conftest import Served, ServeFactory, wait_final
 
-#: a small set of views (10) and bounds it meets (the defaults' 228 views: tests/sessions)
+#: a small set of views (10) and bounds it meets (the defaults' 308 views: tests/sessions)
 SMALL = {
     "square_turns_deg": [-45, 45],
     "square_passes": 1,

@@ -61,6 +61,9 @@ VOLATILE = (
     "results.focal.tilted_fx_px",
     "results.focal.tilted_u_rel",
     "results.focal.disagreement_sigma",
+    # the golden run's 10 views leave k1 weak: OpenCV's fit moves it by 2e-6 of itself from run to run
+    "results.distortion.*.value",
+    "results.camera_model.dist_coeffs",
 )
 
 # the runs, in order; "@validation" stands for the validation session's id
