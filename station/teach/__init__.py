@@ -8,9 +8,11 @@ is the CLI.
 The model (``_model``) is the nominal one until the arm is calibrated; then teach the artifacts again
 through the calibrated arm (``station teach ... --calibration FILE``, or the API's
 ``{"calibration_session": id}``). Through the nominal model the arm's orientation error (its joints'
-zero and twist errors, 0.10-0.15 deg on the simulated arm) is in every taught turn and normal; through
-the calibrated arm it is gone (within 0.07 deg on the simulated cells, the measurements' own floor
-0.04 deg). A crossing's position is always read through the nominal model, at the same pose and from
+zero and twist errors, 0.10-0.15 deg on the simulated arm) is in every taught turn; through the
+calibrated arm it is gone (0.02-0.07 deg on the simulated cells). A normal, read from four sensor points
+30 mm apart, carries the model's local position error instead: about 0.1 deg through either model on the
+simulated day one (0.008-0.085 nominal, 0.012-0.116 calibrated; 0.004-0.037 through the true arm).
+A crossing's position is always read through the nominal model, at the same pose and from
 the same readings: it is what every plan moves through, and a calibration from crossings alone does not
 hold it (it leaves the camera's tilt on the flange and its distance along the optical axis loose: read
 through the calibrated arm the positions moved 2-3 mm on the simulated cells, through the nominal model
