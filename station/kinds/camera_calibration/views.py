@@ -66,18 +66,24 @@ def find_views(
     for cap in taken:
         if float(cap.meta.get("tilt_deg", 0.0)) == 0.0 and reading[cap.capture_id] is not None:
             square.setdefault(int(cap.meta["group"]), []).append(cap)
-    for cap in taken:  # frames are loaded again to be followed: a session holds hundreds
+    in_groups = {c.capture_id for views in square.values() for c in views}
+
+    def detect(cap: CaptureResult) -> bool:
         try:
             found[cap.capture_id] = detect_target(load(cap))
         except CameraCalibrationError as exc:
             missed[cap.capture_id] = f"view {cap.meta.get('view')}: {exc}"
+            return False
+        return True
+
+    for cap in taken:  # the tilted views; a square one is found from its group's reference below
+        if cap.capture_id not in in_groups:
+            detect(cap)
     followed: set[int] = set()
     for views in square.values():
-        ref = min(
-            (c for c in views if c.capture_id in found),
-            key=lambda c: abs(float(c.meta.get("height_mm", 0.0))),
-            default=None,
-        )
+        # the reference: the view nearest focus the detector finds the target in (nearest first)
+        by_height = sorted(views, key=lambda c: abs(float(c.meta.get("height_mm", 0.0))))
+        ref = next((c for c in by_height if detect(c)), None)
         if ref is None:
             continue
         z0 = reading[ref.capture_id]
