@@ -61,8 +61,6 @@ _WHERE: dict[TableContent, str] = {
     "target": "in the artifact's place, printed side up, its centre under the camera at the reference pose "
     "and its edges along the table's axes",
 }
-SCAN_SESSIONS = 50
-"""How many of the newest sessions are searched for the last confirmed content (beyond: unknown, ask)."""
 
 
 def needed_content(plan: Any, params: Any) -> TableContent | None:
@@ -86,19 +84,17 @@ def remembered(record: Record, opened_id: str) -> tuple[TableContent | None, str
     """The station's last confirmed table content for this opening of its devices, and the session that
     recorded it; ``(None, None)`` when unknown (nothing confirmed since the devices were opened)."""
     try:
-        sessions = record.list_sessions()[:SCAN_SESSIONS]
-        for s in sessions:
-            found = [e for e in record.events(s.id) if e.type == EVENT]
-            if not found:
-                continue
-            data = found[-1].data
-            if data.get("opened") != opened_id or data.get("content") not in TABLE_CONTENTS:
-                return None, None  # confirmed before a restart: the table may have changed since
-            content: TableContent = data["content"]
-            return content, s.id
+        last = record.last_event(EVENT)
     except RecordError as exc:  # the record cannot say: ask
         log.warning("the last table content could not be read from the record (%s): asking", exc)
-    return None, None
+        return None, None
+    if last is None:
+        return None, None
+    data = last.data
+    if data.get("opened") != opened_id or data.get("content") not in TABLE_CONTENTS:
+        return None, None  # confirmed before a restart: the table may have changed since
+    content: TableContent = data["content"]
+    return content, last.session_id
 
 
 def place_for_session(

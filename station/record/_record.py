@@ -287,6 +287,14 @@ class Record(FramesMixin):
             event_id = new_id(done)
         return EventRow(id=event_id, session_id=session_id, seq=seq, time=now, type=type, data=value)
 
+    def last_event(self, type_: str) -> EventRow | None:
+        """The station's newest event of type ``type_`` (highest id, whatever session), or None: one
+        index seek (``ix_events_type_id``), however many sessions and events the record holds."""
+        query = sa.select(events).where(events.c.type == type_).order_by(events.c.id.desc()).limit(1)
+        with self._read() as conn:
+            row = conn.execute(query).first()
+        return None if row is None else event_row(row)
+
     def events(
         self, session_id: str | None = None, *, after_id: int = 0, after_seq: int = 0, limit: int = 1000
     ) -> list[EventRow]:

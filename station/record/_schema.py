@@ -84,6 +84,8 @@ events = sa.Table(
     sa.Column("type", sa.String(64), nullable=False),
     sa.Column("data", sa.JSON(), nullable=False),
     sa.UniqueConstraint("session_id", "seq"),
+    # the newest event of one type, station-wide (``Record.last_event``; migration 0003)
+    sa.Index("ix_events_type_id", "type", "id"),
 )
 
 steps = sa.Table(

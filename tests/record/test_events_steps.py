@@ -30,6 +30,19 @@ def test_event_ids_increase_station_wide_and_seq_counts_per_session(record: Reco
     assert made[2].time > made[0].time
 
 
+def test_last_event_is_the_newest_of_its_type_whatever_session(record: Record) -> None:
+    assert record.last_event("table_content") is None
+    older = record.create_session("validation", **SNAPSHOT)
+    newer = record.create_session("calibration", **SNAPSHOT)
+    record.add_event(newer.id, "table_content", {"content": "cross"})
+    resumed = record.add_event(older.id, "table_content", {"content": "ruler"})  # the older one resumed
+    record.add_event(newer.id, "state", {"state": "running"})
+    assert record.last_event("table_content") == resumed
+    assert record.last_event("state") is not None
+    assert record.last_event("state").session_id == newer.id  # type: ignore[union-attr]
+    assert record.last_event("no_such_type") is None
+
+
 def test_event_data_comes_back_as_written(record: Record) -> None:
     s = record.create_session("validation", **SNAPSHOT)
     written = record.add_event(s.id, "measurement", {"center_mm": np.array([0.1, -0.2]), "n": np.int64(3)})
