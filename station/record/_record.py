@@ -252,6 +252,19 @@ class Record(FramesMixin):
             if done.rowcount == 0:
                 raise RecordNotFoundError(session_id, self.url)
 
+    def set_identities(self, session_id: str, identities: Mapping[str, Any]) -> None:
+        """Replace the session's device identities: what the devices report once connected (a session
+        is created before its devices connect, with what the configuration alone says)."""
+        value = json_object(identities, "identities")
+        with self._write() as conn:
+            done = conn.execute(
+                sessions.update()
+                .where(sessions.c.id == session_id)
+                .values(identities=value, updated_at=self._now())
+            )
+            if done.rowcount == 0:
+                raise RecordNotFoundError(session_id, self.url)
+
     def set_results(self, session_id: str, results: Mapping[str, Any]) -> None:
         """Store the session's results (replacing any earlier ones)."""
         value = json_object(results, "results")

@@ -41,7 +41,10 @@ class SessionDevices:
                 continue
             device.connect()
             stack.callback(self._close, name, device, aborted)
-        self.journal.emit("connected", {"devices": devices.identities()})
+        identities = devices.identities()
+        self.journal.emit("connected", {"devices": identities})
+        if self.journal.session_id is not None:  # the row had only what the configuration says
+            self.journal.record.set_identities(self.journal.session_id, identities)
 
     def _close(self, name: str, device: Any, aborted: Callable[[], bool]) -> None:
         if name == "robot" and aborted():

@@ -10,7 +10,7 @@ from typing import Any
 
 import pytest
 
-from station.devices import DeviceConnectionError, DeviceProtocolError
+from station.devices import DeviceConnectionError, DeviceIdentity, DeviceProtocolError
 from station.kinds import get_plan
 from station.plans import parse_params
 from station.record import Record
@@ -49,6 +49,26 @@ def test_z_is_recorded_with_each_capture_and_rp_is_reported_in_3d(tmp_path: Path
         assert sensor.calls_of("close") == [()]
         (connected,) = log.of("connected")
         assert connected.data["devices"]["distance_sensor"]["model"] == "fake distance sensor"
+
+
+class FirmwareOnConnect(FakeDistanceSensor):
+    """A sensor that reports its firmware only once connected, as the real heads do."""
+
+    def identity(self) -> DeviceIdentity:
+        return DeviceIdentity(
+            model=self.MODEL, serial="fake-1", port="in-process", firmware="2.1" if self.connected else None
+        )
+
+
+def test_the_session_row_keeps_the_identities_the_devices_report_once_connected(tmp_path: Path) -> None:
+    fake = FakeStation(distance_sensor=FirmwareOnConnect(lambda: 68.0))
+    with Record(tmp_path) as record:
+        r, log = run(record, fake)
+        assert r.state is SessionState.SUCCEEDED, r.error
+        (connected,) = log.of("connected")
+        assert connected.data["devices"]["distance_sensor"]["firmware"] == "2.1"
+        row = record.get_session(sid_of(r))
+        assert row.identities == connected.data["devices"]  # not what the devices said before connecting
 
 
 def test_without_a_sensor_the_results_are_as_before(tmp_path: Path) -> None:
