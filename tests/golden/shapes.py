@@ -16,6 +16,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
@@ -80,21 +81,32 @@ def values(doc: Any, volatile: Iterable[str], path: str = "") -> Any:
     return walk(doc, [])
 
 
-def close(got: Any, want: Any, path: str = "$", rel: float = 1e-6, abs_: float = 1e-9) -> list[str]:
-    """Where ``got`` differs from ``want`` (floats within ``rel`` / ``abs_``; the rest exactly)."""
+def close(
+    got: Any,
+    want: Any,
+    path: str = "$",
+    rel: float = 1e-6,
+    abs_: float = 1e-9,
+    loose: Iterable[str] = (),
+    loose_rel: float = 1e-4,
+) -> list[str]:
+    """Where ``got`` differs from ``want`` (floats within ``rel`` / ``abs_``, or ``loose_rel`` at the
+    ``loose`` paths, written as ``values``' volatile ones; the rest exactly)."""
+    if loose and _matches(path, loose):
+        rel, loose = loose_rel, ()
     if isinstance(want, dict):
         if not isinstance(got, dict):
             return [f"{path}: {got!r} is not an object"]
         out = [f"{path}: keys {sorted(set(got) ^ set(want))} differ"] if set(got) != set(want) else []
         for k in sorted(set(got) & set(want)):
-            out += close(got[k], want[k], f"{path}.{k}", rel, abs_)
+            out += close(got[k], want[k], f"{path}.{k}", rel, abs_, loose, loose_rel)
         return out
     if isinstance(want, list):
         if not isinstance(got, list) or len(got) != len(want):
             return [f"{path}: {got!r} is not a list of {len(want)}"]
         out = []
         for i, (g, w) in enumerate(zip(got, want, strict=True)):
-            out += close(g, w, f"{path}[{i}]", rel, abs_)
+            out += close(g, w, f"{path}[{i}]", rel, abs_, loose, loose_rel)
         return out
     if isinstance(want, float) and not isinstance(got, bool) and isinstance(got, int | float):
         if type(got) is not float or not math.isclose(got, want, rel_tol=rel, abs_tol=abs_):
@@ -103,6 +115,16 @@ def close(got: Any, want: Any, path: str = "$", rel: float = 1e-6, abs_: float =
     if type(got) is not type(want) or got != want:
         return [f"{path}: {got!r} != {want!r}"]
     return []
+
+
+def _matches(path: str, patterns: Iterable[str]) -> bool:
+    """Whether ``close``'s ``path`` (``$.a.b[3].c``) lies at or under one of ``patterns`` (``a.b.*``)."""
+    parts = re.sub(r"\[(\d+)\]", r".\1", path).split(".")[1:]
+    for p in patterns:
+        want = p.split(".")
+        if len(parts) >= len(want) and all(a in ("*", b) for a, b in zip(want, parts, strict=False)):
+            return True
+    return False
 
 
 def golden(name: str, doc: Any) -> Any:

@@ -66,6 +66,18 @@ VOLATILE = (
     "results.camera_model.dist_coeffs",
 )
 
+# compared to 1e-3 only: a weakly determined parameter's uncertainty and a structural deficiency's
+# trade-off coefficients come from the golden calibration's nearly singular normal matrix, whose last
+# digits move them with the machine's BLAS (seen on a fresh machine: sigmas by 5e-6 of themselves, small
+# coefficients of a combination by 3e-4)
+LOOSE = (
+    "results.calibration.parameters.*.sigma",
+    "results.calibration.parameters.*.interval",
+    "results.parameters.*.sigma",
+    "results.parameters.*.interval",
+    "results.calibration.identifiability.structural.*.combination",
+)
+
 # the runs, in order; "@validation" stands for the validation session's id
 RUNS: dict[str, list[str]] = {
     "validation": ["--sim", "--param", "steps_per_side=2"],
@@ -140,7 +152,7 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, dict
 def check(name: str, doc: dict[str, Any]) -> None:
     want = golden(name, {"shape": shape(doc), "values": values(doc, VOLATILE)})
     assert shape(doc) == want["shape"], f"{name}: the object's keys or types changed"
-    problems = close(values(doc, VOLATILE), want["values"])
+    problems = close(values(doc, VOLATILE), want["values"], loose=LOOSE, loose_rel=1e-3)
     assert not problems, f"{name}: values changed: {problems[:20]}"
 
 
