@@ -9,9 +9,13 @@ The model (``_model``) is the nominal one until the arm is calibrated; then teac
 through the calibrated arm (``station teach ... --calibration FILE``, or the API's
 ``{"calibration_session": id}``). Through the nominal model the arm's orientation error (its joints'
 zero and twist errors, 0.10-0.15 deg on the simulated arm) is in every taught turn; through the
-calibrated arm it is gone (0.02-0.07 deg on the simulated cells). A normal, read from four sensor points
-30 mm apart, carries the model's local position error instead: about 0.1 deg through either model on the
-simulated day one (0.008-0.085 nominal, 0.012-0.116 calibrated; 0.004-0.037 through the true arm).
+calibrated arm it is gone (0.02-0.07 deg on the simulated cells). A normal is read from the sensor at four
+points around the crossing. Through the nominal model the camera is shifted 30 mm between them, and the
+normal carries the model's local position error (0.008-0.085 deg on the simulated day one). Through a
+calibrated arm only the wrist turns (joint 6), so that the beam circles the optical axis between the
+grooves, and the normal carries only the orientation of the wrist's axis, which a calibration from
+crossings pins: 0.007-0.024 deg on the simulated day one, where shifting the camera gave 0.012-0.116
+(the calibration does not pin its position error's gradient; ``TeachRig.plane_samples``).
 A crossing's position is always read through the nominal model, at the same pose and from
 the same readings: it is what every plan moves through, and a calibration from crossings alone does not
 hold it (it leaves the camera's tilt on the flange and its distance along the optical axis loose: read
@@ -36,6 +40,7 @@ from station.teach._maths import (
     sensor_point,
     square_on,
     square_turn_deg,
+    wrist_turns_deg,
 )
 from station.teach._model import (
     CalibrationRefusedError,
@@ -96,4 +101,5 @@ __all__ = [
     "teach_reference",
     "teach_sensor_mount",
     "update_config",
+    "wrist_turns_deg",
 ]

@@ -51,6 +51,7 @@ __all__ = [
     "sensor_point",
     "square_on",
     "square_turn_deg",
+    "wrist_turns_deg",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -135,6 +136,43 @@ def square_turn_deg(
     b = crossing_on_plane(camera_pose, far, intrinsics, plane)
     u = (square_on(plane.normal) @ LOOK_DOWN).T @ (b - a)
     return math.degrees(math.atan2(float(u[1]), float(u[0])))
+
+
+WRIST_BEAM_MAX_DEG = 5.0
+"""Largest angle between the sensor's beam and the wrist's axis (joint 6) at which turning the wrist
+circles the beam's spot on the plane (``wrist_turns_deg``)."""
+WRIST_RADIUS_MIN_MM = 5.0
+"""Smallest distance of the beam from the wrist's axis that the circle's readings tilt a plane by."""
+
+
+def wrist_turns_deg(
+    kinematics: Kinematics, joints_deg: Sequence[float], sensor_mount: FloatArray, groove_deg: float
+) -> list[float] | None:
+    """Turns of joint 6 (deg, from ``joints_deg``, nearest first, within a turn and a quarter either
+    way) that put the sensor's spot on the artifact at 45 deg from both grooves (``groove_deg``: the
+    measured direction of the groove nearest the image's x), on one of the four diagonals (the first
+    four turns: each diagonal once): the beam, parallel to the wrist's axis, circles it. None when the
+    beam is not (``WRIST_BEAM_MAX_DEG``) or too close to the axis to circle it (``WRIST_RADIUS_MIN_MM``)."""
+    start = np.asarray(joints_deg, dtype=np.float64)
+    flange = kinematics.flange(start)
+    camera = kinematics.forward(start)
+    head = camera @ sensor_mount
+    axis = flange[:3, 2]
+    beam = head[:3, 2]
+    if math.degrees(math.acos(min(1.0, abs(float(axis @ beam))))) > WRIST_BEAM_MAX_DEG:
+        return None
+    offset = head[:3, 3] - flange[:3, 3]
+    if float(np.linalg.norm(offset - (offset @ axis) * axis)) < WRIST_RADIUS_MIN_MM:
+        return None
+    # which way a turn of joint 6 turns the camera about its optical axis (+1 or -1, for a camera
+    # mounted along the wrist)
+    turned = start.copy()
+    turned[5] += 1.0
+    x = camera[:3, :3].T @ kinematics.forward(turned)[:3, 0]
+    sign = 1.0 if x[1] >= 0.0 else -1.0
+    spot = math.degrees(math.atan2(float(sensor_mount[1, 3]), float(sensor_mount[0, 3])))
+    base = (sign * (groove_deg + 45.0 - spot) + 45.0) % 90.0 - 45.0
+    return sorted((base + 90.0 * k for k in range(-4, 5)), key=abs)
 
 
 def pose_to_see(

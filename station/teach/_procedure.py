@@ -13,14 +13,16 @@ from __future__ import annotations
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from itertools import pairwise
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
+from station.arm_route import max_step_of, split_move, step_limit
 from station.camera_model import CameraIntrinsics, read_camera_model
 from station.config import StationConfig, StationDevices
-from station.devices import Camera, DistanceSensor, Robot
+from station.devices import Camera, DistanceSensor, MotionRejectedError, Robot
 from station.jog import JOG_SPEED_PCT, camera_jog_target, camera_offset_target
 from station.kinematics import Kinematics
 from station.teach._maths import (
@@ -33,6 +35,7 @@ from station.teach._maths import (
     pose_to_see,
     sensor_point,
     square_turn_deg,
+    wrist_turns_deg,
 )
 from station.teach._model import TeachModel
 from station.vision import MeasureParams, measure
@@ -57,6 +60,8 @@ SENSOR_HEIGHTS_MM = (-1.5, -0.75, 0.0, 0.75, 1.5)
 PLANE_SPREAD_MM = 15.0
 """The sensor reads the artifact's plane at four points this far along the camera's x and y from the
 point the camera looks at (off both grooves, around the crossing: the plane is not extrapolated)."""
+WRIST_SAMPLES = 4
+"""Readings a plane read by turning the wrist takes: one on each diagonal between the grooves."""
 
 
 @dataclass
@@ -77,6 +82,7 @@ class TeachRig:
     readings: int = 5
     measure_params: MeasureParams = field(default_factory=MeasureParams)
     model: TeachModel | None = None
+    max_step_deg: float = 30.0
 
     @property
     def kinematics(self) -> Kinematics:
@@ -123,7 +129,25 @@ class TeachRig:
         """The artifact's plane through the rig's model (``plane_samples``)."""
         return self.plane_samples().plane(self.kinematics)
 
-    def plane_samples(self) -> PlaneSamples:
+    def plane_samples(self, groove_deg: float | None = None) -> PlaneSamples:
+        """Sensor readings around the point the camera looks at, with the encoders' joints of each (the
+        arm comes back): through a calibrated arm with the grooves' direction known (``groove_deg``, the
+        measured groove nearest the image's x), the wrist turned (:meth:`wrist_samples`), else the camera
+        shifted (:meth:`shifted_samples`).
+
+        Read through an arm model, a plane's normal carries what that model gets wrong between the
+        points: shifted, the gradient of its position error (the joints 1-3 move); turned, the
+        orientation of the wrist's axis alone (joint 6 moves). A calibration from crossings pins the
+        latter (0.009-0.011 deg on the simulated day one's calibrated arm, without noise) but not the
+        former (0.011-0.116 deg there); the nominal model's errors are of one size either way (0.015-0.081
+        shifted, 0.080-0.162 turned). Taught there: 0.007-0.024 deg turned, 0.012-0.116 shifted."""
+        if self.model is not None and groove_deg is not None:
+            turned = self.wrist_samples(groove_deg)
+            if turned is not None:
+                return turned
+        return self.shifted_samples()
+
+    def shifted_samples(self) -> PlaneSamples:
         """Sensor readings at four points around the one the camera looks at (the camera shifted in its
         own x and y so that the beam lands there; the arm comes back), with the encoders' joints of each."""
         if self.sensor_mount is None:
@@ -140,6 +164,72 @@ class TeachRig:
         finally:
             self.move(start)
         return PlaneSamples(self.sensor_mount, tuple(samples))
+
+    def wrist_samples(self, groove_deg: float) -> PlaneSamples | None:
+        """Sensor readings with only the wrist (joint 6) turned, so that the beam's spot circles the
+        optical axis and lands on each diagonal between the grooves (``wrist_turns_deg``), with the
+        encoders' joints of each; the arm comes back. Every move is checked before the first is sent
+        (a turn the robot refuses, a joint limit or the keep-out, is left out; three must remain). None
+        when the sensor's beam cannot circle the axis (not along the wrist, or on it)."""
+        if self.sensor_mount is None:
+            raise TeachError("teaching a plane needs the distance sensor and its mount")
+        start = self.joints()
+        turns = wrist_turns_deg(self.kinematics, start, self.sensor_mount, groove_deg)
+        if turns is None:
+            return None
+        step = step_limit(self.max_step_deg)
+        chosen: list[tuple[float, ...]] = []
+        refused: list[str] = []
+        diagonals: set[int] = set()
+        for turn in turns:
+            diagonal = round((turn - turns[0]) / 90.0) % 4
+            if diagonal in diagonals:
+                continue
+            target = (*start[:5], round(start[5] + turn, 3))
+            why = self._route_refused(start, target, step)
+            if why is None:
+                chosen.append(target)
+                diagonals.add(diagonal)
+            else:
+                refused.append(f"{turn:+.0f} deg: {why}")
+            if len(chosen) == WRIST_SAMPLES:
+                break
+        if len(chosen) < 3:
+            raise TeachError(
+                "the wrist cannot turn far enough here to read the plane around the crossing ("
+                + "; ".join(refused)
+                + "); jog joint 6 toward the middle of its range, or the arm away from what it would hit,"
+                " and teach again"
+            )
+        chosen.sort(key=lambda q: q[5])
+        path = [start, *chosen, start]
+        legs = [split_move(a, b, step) for a, b in pairwise(path)]
+        here = start
+        for leg in legs:  # all checked before the first move
+            for q in leg:
+                self.robot.check_move(q, start_deg=here)
+                here = q
+        samples = []
+        try:
+            for leg in legs[:-1]:
+                for q in leg:
+                    self.move(q)
+                samples.append((self.attained(), self.reading_mm()))
+        finally:
+            for q in split_move(self.joints(), start, step):
+                self.move(q)
+        return PlaneSamples(self.sensor_mount, tuple(samples))
+
+    def _route_refused(self, start: Sequence[float], target: Sequence[float], step: float) -> str | None:
+        """Why the robot refuses the way from ``start`` to ``target`` (None: it does not); no I/O."""
+        here = tuple(start)
+        try:
+            for q in split_move(start, target, step):
+                self.robot.check_move(q, start_deg=here)
+                here = q
+        except MotionRejectedError as exc:
+            return str(exc)
+        return None
 
 
 @dataclass(frozen=True)
@@ -234,10 +324,11 @@ def teach_artifact(rig: TeachRig, *, rounds: int = 2) -> TaughtArtifact:
             rig.joints(), rig.kinematics, point, rig.working_distance_mm, normal=plane.normal
         )
         rig.move(tuple(round(float(v), 3) for v in target))
-    samples = rig.plane_samples()
-    plane = samples.plane(rig.kinematics)
+    # the crossing and the joints it is seen at first: the plane's readings move the arm
     center, rotation = rig.crossing()
     at = rig.attained()
+    samples = rig.plane_samples(groove_deg=rotation)
+    plane = samples.plane(rig.kinematics)
     turn = square_turn_deg(rig.kinematics.forward(at), center, rotation, rig.intrinsics, plane)
     n = plane.normal
     # The crossing's position stays the nominal model's reading at the same pose, calibrated or not: the
@@ -325,4 +416,5 @@ def rig_for(
         working_distance_mm=wd,
         speed_pct=speed,
         model=model,
+        max_step_deg=max_step_of(safety),
     )

@@ -474,12 +474,11 @@ def frame_truth(host: SessionHost) -> list[Any]:
 
 
 def check_retaught(true: list[Any], again: dict[str, dict[str, Any]], calibration_id: str) -> None:
-    """Taught through the calibrated arm, every turn within 0.1 deg of the truth in its frame (the one its
-    nominal base row defines), and every crossing (read through the nominal model: a calibration from
-    crossings alone leaves the calibrated one's position loose, ``station.teach``'s notes) within 0.1 mm
-    of the truth. The normals are held to 0.15 deg, not the issue's 0.1: seen here 0.012-0.116 deg (the
-    table's the worst), where the twin's true arm gives 0.004-0.037: the calibrated arm's own error at
-    the artifact's pose is in them (issue 23 stays open on it)."""
+    """Taught through the calibrated arm, every normal and turn within 0.1 deg of the truth in its frame
+    (the one its nominal base row defines), and every crossing (read through the nominal model: a
+    calibration from crossings alone leaves the calibrated one's position loose, ``station.teach``'s
+    notes) within 0.1 mm of the truth. Seen here: normals 0.007-0.024 deg (read by turning the wrist;
+    the camera shifted gave 0.012-0.116), turns 0.022-0.027 deg, positions 0.041-0.093 mm."""
     errors = {
         name: (
             float(np.max(np.abs(np.subtract(again[name]["position_mm"], true[k][0])))),
@@ -495,5 +494,5 @@ def check_retaught(true: list[Any], again: dict[str, dict[str, Any]], calibratio
     for name, (position, normal, turn) in errors.items():
         assert again[name]["model"]["calibration_session"] == calibration_id
         assert position < 0.1, (name, errors)
-        assert normal < 0.15, (name, errors)
+        assert normal < 0.1, (name, errors)
         assert turn < 0.1, (name, errors)
