@@ -146,7 +146,7 @@ WRIST_RADIUS_MIN_MM = 5.0
 
 
 def wrist_turns_deg(
-    kinematics: Kinematics, joints_deg: Sequence[float], sensor_mount: FloatArray, groove_deg: float
+    kinematics: Kinematics, joints_deg: npt.ArrayLike, sensor_mount: FloatArray, groove_deg: float
 ) -> list[float] | None:
     """Turns of joint 6 (deg, from ``joints_deg``, nearest first, within a turn and a quarter either
     way) that put the sensor's spot on the artifact at 45 deg from both grooves (``groove_deg``: the
