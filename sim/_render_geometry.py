@@ -19,7 +19,7 @@ from scipy.special import chndtr, ndtr
 FloatArray = npt.NDArray[np.float64]
 Float32Array = npt.NDArray[np.float32]
 
-__all__ = ["box_step", "cutoff_px", "edge_coverage", "land_fraction", "line_distance"]
+__all__ = ["box_step", "box_step_sorted", "cutoff_px", "edge_coverage", "land_fraction", "line_distance"]
 
 _SMALL_WIDTH = 1e-5
 """Below this narrower trapezoid width the limit form is used (error < 1e-11, see ``box_step``)."""
@@ -79,15 +79,21 @@ def box_step(d: npt.ArrayLike, cos_abs: npt.ArrayLike, sin_abs: npt.ArrayLike, s
     d_arr, ca, sa = np.broadcast_arrays(
         np.asarray(d, dtype=np.float64), np.asarray(cos_abs, np.float64), np.asarray(sin_abs, np.float64)
     )
-    a = np.maximum(ca, sa)
-    b = np.minimum(ca, sa)
+    return box_step_sorted(d_arr, np.maximum(ca, sa), np.minimum(ca, sa), sigma_px)
+
+
+def box_step_sorted(d_arr: FloatArray, a: FloatArray, b: FloatArray, sigma_px: float) -> FloatArray:
+    """``box_step`` for same-shaped float64 arrays with the widths sorted already: ``a >= b`` (the larger
+    and the smaller of ``|cos phi|``, ``|sin phi|``); what a caller that knows them per pixel evaluates."""
     s = -np.abs(d_arr)
     small = b < _SMALL_WIDTH
-    low = np.empty_like(s)
-    wide = ~small
-    if wide.any():
-        low[wide] = _trapezoid(s[wide], a[wide], b[wide], sigma_px)
-    if small.any():
+    if not small.any():  # the usual case: no masks to gather and scatter through
+        low = _trapezoid(s, a, b, sigma_px)
+    else:
+        low = np.empty_like(s)
+        wide = ~small
+        if wide.any():
+            low[wide] = _trapezoid(s[wide], a[wide], b[wide], sigma_px)
         low[small] = _rectangle(s[small], a[small], sigma_px)
     np.clip(low, 0.0, 0.5, out=low)
     return np.asarray(np.where(d_arr > 0.0, 1.0 - low, low))

@@ -31,8 +31,8 @@ import numpy as np
 import numpy.typing as npt
 
 from sim._render_camera import F4_DEFOCUS_PX_PER_MM
-from sim._render_features import vignetting_map
-from sim._render_geometry import Float32Array, FloatArray, box_step, cutoff_px
+from sim._render_geometry import Float32Array, FloatArray
+from sim._render_target import cached_vignetting, pixel_rays, reflectance, target_face
 from sim.presets import NoisePreset, get_preset
 from station.camcal import STANDARD_TARGET, CharucoTarget, ViewSpec
 from station.camera_model import CameraIntrinsics
@@ -50,7 +50,6 @@ WORLD_DEFOCUS_PX_PER_MM = F4_DEFOCUS_PX_PER_MM
 """``sim.world.WorldSpec.defocus_px_per_mm``'s default: f/4 since issue 22 (it was 20 px/mm, an f/0.6
 lens, which does not exist)."""
 
-_UNDISTORT_TOL_PX = 1e-6
 _BLUR_LEVELS = np.array(
     [0.0, 0.35, 0.7, 1.0, 1.4, 2.0, 2.8, 4.0, 5.6, 8.0, 11.0, 16.0, 22.0, 32.0, 45.0, 64.0]
 )
@@ -107,63 +106,6 @@ class TargetTruth:
     intrinsics: CameraIntrinsics
 
 
-def _pixel_rays(intrinsics: CameraIntrinsics, shape: tuple[int, int]) -> FloatArray:
-    """Undistorted normalised coordinates of every pixel centre, (h, w, 2), checked by re-projection."""
-    h, w = shape
-    ys, xs = np.mgrid[0:h, 0:w].astype(np.float64)
-    px = np.stack([xs.ravel(), ys.ravel()], axis=1).reshape(-1, 1, 2)
-    K, dist = intrinsics.camera_matrix, intrinsics.dist_coeffs
-    rays = np.asarray(cv2.undistortPoints(px, K, dist), dtype=np.float64).reshape(-1, 2)
-    # The inversion fails first where the distortion is strongest, at the frame's edge: check the edge
-    # rows and columns and every 7th pixel, and the rest only if any of those fails.
-    grid = np.zeros((h, w), dtype=bool)
-    grid[::7, ::7] = grid[[0, -1], :] = grid[:, [0, -1]] = True
-    sample = np.flatnonzero(grid.ravel())
-    back = _project(np.column_stack([rays[sample], np.ones(sample.size)]), K, dist)
-    if np.max(np.hypot(*(back - px[sample].reshape(-1, 2)).T)) > _UNDISTORT_TOL_PX:
-        back = _project(np.column_stack([rays, np.ones(len(rays))]), K, dist)
-        sample = np.arange(h * w)
-    bad = sample[np.hypot(*(back - px[sample].reshape(-1, 2)).T) > _UNDISTORT_TOL_PX]
-    if bad.size:
-        criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-15)
-        exact = cv2.undistortPointsIter(px[bad], K, dist, np.eye(3), np.eye(3), criteria)
-        rays[bad] = np.asarray(exact, dtype=np.float64).reshape(-1, 2)
-        back = _project(np.column_stack([rays[bad], np.ones(bad.size)]), K, dist)
-        if np.max(np.hypot(*(back - px[bad].reshape(-1, 2)).T)) > _UNDISTORT_TOL_PX:
-            raise ValueError("the lens's distortion cannot be inverted over the image: it is too strong")
-    return rays.reshape(h, w, 2)
-
-
-def _project(points: FloatArray, K: FloatArray, dist: FloatArray) -> FloatArray:
-    out, _ = cv2.projectPoints(points.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), K, dist)
-    return np.asarray(out.reshape(-1, 2), dtype=np.float64)
-
-
-def _axis_coverage(
-    coord: FloatArray, grad: FloatArray, cell_mm: float, sigma_px: float
-) -> tuple[npt.NDArray[np.intp], FloatArray]:
-    """First cell index near each pixel and the coverage of the cells from it, ``(h, w)`` and ``(k, h, w)``.
-
-    ``coord``: the target coordinate (mm) at each pixel centre; ``grad``: its image gradient (mm/px),
-    ``(h, w, 2)``. Cell ``i`` spans ``[i, i + 1] * cell_mm``; its coverage is the difference of the
-    blurred pixel fractions beyond its two lines.
-    """
-    norm = np.hypot(grad[..., 0], grad[..., 1])
-    reach_mm = cutoff_px(sigma_px) * norm
-    first = np.floor((coord - reach_mm) / cell_mm).astype(np.intp)
-    count = int(np.max(np.floor((coord + reach_mm) / cell_mm).astype(np.intp) - first)) + 1
-    cos_abs, sin_abs = np.abs(grad[..., 0]) / norm, np.abs(grad[..., 1]) / norm
-    cut = cutoff_px(sigma_px)
-    beyond = []
-    for k in range(count + 1):
-        d = (coord - (first + k) * cell_mm) / norm
-        out = (d > 0.0).astype(np.float64)  # beyond the cut-off a pixel is on one side (box_step's 1e-13)
-        near = np.abs(d) < cut
-        out[near] = box_step(d[near], cos_abs[near], sin_abs[near], sigma_px)
-        beyond.append(out)
-    return first, np.stack([beyond[k] - beyond[k + 1] for k in range(count)])
-
-
 def _defocus(image: FloatArray, sigma_px: FloatArray) -> FloatArray:
     """``image`` defocused: each pixel's light spread by a Gaussian of its own ``sigma_px``.
 
@@ -181,7 +123,10 @@ def _defocus(image: FloatArray, sigma_px: FloatArray) -> FloatArray:
     lo, hi = levels[idx], levels[idx + 1]
     frac = np.clip((sigma_px - lo) / (hi - lo), 0.0, 1.0)
     out = np.zeros(image.shape, dtype=np.float64)
+    present = np.bincount(idx.ravel(), minlength=len(levels)) > 0  # the pixels' lower levels
     for k, s in enumerate(levels):
+        if not (present[k] or (k > 0 and present[k - 1])):
+            continue  # no pixel's weight on this level
         weight = np.where(idx == k, 1.0 - frac, 0.0) + np.where(idx == k - 1, frac, 0.0)
         if not weight.any():
             continue
@@ -263,37 +208,17 @@ def render_target(
     width, height = intrinsics.image_size
     shape = (height, width)
     R, t = pose.rotation, pose.translation_mm
-    rays = _pixel_rays(intrinsics, shape)
     # Target point (u, v) seen by each pixel: (u, v, 1) ~ inv([r1 r2 t]) (x, y, 1).
     inv_h = np.linalg.inv(np.column_stack([R[:, 0], R[:, 1], t]))
-    hom = np.concatenate([rays, np.ones((*shape, 1))], axis=2) @ inv_h.T
+    hom = pixel_rays(intrinsics, shape) @ inv_h.T
     if np.any(hom[..., 2] <= 0):
         raise ValueError("the target's plane does not fill the view in front of the camera (horizon in view)")
     u, v = hom[..., 0] / hom[..., 2], hom[..., 1] / hom[..., 2]
     depth = (R[2, 0] * u + R[2, 1] * v) + t[2]
-    cell = target.square_mm / n
-    du_dy, du_dx = np.gradient(u)
-    dv_dy, dv_dx = np.gradient(v)
-    gu = np.stack([du_dx, du_dy], axis=-1)
-    gv = np.stack([dv_dx, dv_dy], axis=-1)
-    col0, cols = _axis_coverage(u, gu, cell, p.blur_sigma_px)
-    row0, rows = _axis_coverage(v, gv, cell, p.blur_sigma_px)
-    face = target.pattern(n).astype(np.float64) / 255.0
-    pad = max(cols.shape[0], rows.shape[0]) + 1
-    i_lo, j_lo = int(col0.min()) - pad, int(row0.min()) - pad
-    i_hi, j_hi = int(col0.max()) + cols.shape[0] + pad, int(row0.max()) + rows.shape[0] + pad
-    board = np.ones((j_hi - j_lo, i_hi - i_lo))  # white beyond the pattern
-    js, is_ = max(0, -j_lo), max(0, -i_lo)
-    je, ie = min(board.shape[0], face.shape[0] - j_lo), min(board.shape[1], face.shape[1] - i_lo)
-    if je > js and ie > is_:
-        board[js:je, is_:ie] = face[js + j_lo : je + j_lo, is_ + i_lo : ie + i_lo]
-    reflect = np.zeros(shape)
-    for k in range(cols.shape[0]):
-        for m in range(rows.shape[0]):
-            reflect += cols[k] * rows[m] * board[row0 + m - j_lo, col0 + k - i_lo]
+    reflect = reflectance(u, v, target_face(target, n), target.square_mm / n, p.blur_sigma_px)
     reflect = _defocus(reflect, defocus_px_per_mm * np.abs(depth - focus_mm))
     clean = (p.paint_level_dn + reflect * (p.land_level_dn - p.paint_level_dn)).astype(np.float32)
-    clean *= vignetting_map(shape, p.vignetting)
+    clean *= cached_vignetting(shape, float(p.vignetting))
     image = sensor_readout(clean, p, rng)
     return image, _truth(target, pose, intrinsics, focus_mm, p.blur_sigma_px, defocus_px_per_mm)
 
