@@ -29,7 +29,7 @@ from sim._render_geometry import Float32Array, FloatArray, box_step_sorted, cuto
 from station.camcal import CharucoTarget
 from station.camera_model import CameraIntrinsics
 
-__all__ = ["cached_vignetting", "pixel_rays", "reflectance", "target_face"]
+__all__ = ["cached_vignetting", "pixel_rays", "scene", "target_face"]
 
 _UNDISTORT_TOL_PX = 1e-6
 _RAY_CACHE_SIZE = 4
@@ -38,6 +38,10 @@ _rays: OrderedDict[tuple[bytes, bytes, tuple[int, int]], FloatArray] = OrderedDi
 _rays_lock = Lock()
 
 IntArray = npt.NDArray[np.intp]
+
+_BAND_PIXELS = 16384
+"""Pixels per band of rows the scene is computed in (25 rows of 640): each band's arrays (128 kB each)
+stay in the processor's cache."""
 
 
 def pixel_rays(intrinsics: CameraIntrinsics, shape: tuple[int, int]) -> FloatArray:
@@ -110,35 +114,37 @@ def cached_vignetting(shape: tuple[int, int], strength: float) -> Float32Array:
 
 
 class _Axis:
-    """One axis of the target (u: columns of cells, v: rows) as the pixels see it."""
+    """One axis of the target (u: columns of cells, v: rows) as a band of pixels sees it."""
 
-    def __init__(self, coord: FloatArray, cell_mm: float, sigma_px: float) -> None:
-        d_dy, d_dx = np.gradient(coord)
+    def __init__(
+        self, coord: FloatArray, d_dx: FloatArray, d_dy: FloatArray, cell_mm: float, cut: float
+    ) -> None:
         norm = np.hypot(d_dx, d_dy)
-        reach_mm = cutoff_px(sigma_px) * norm
+        reach_mm = cut * norm
         self.coord, self.norm = coord, norm
         self.first: IntArray = np.floor((coord - reach_mm) / cell_mm).astype(np.intp)
-        # cells first .. last can cover the pixel; the others' coverage is exactly 0
+        # cells first .. first + span - 1 can cover the pixel; the others' coverage is exactly 0
         self.span: IntArray = np.floor((coord + reach_mm) / cell_mm).astype(np.intp) - self.first + 1
         self.count = int(np.max(self.span))
         cos_abs, sin_abs = np.abs(d_dx) / norm, np.abs(d_dy) / norm
         self.wide, self.narrow = np.maximum(cos_abs, sin_abs), np.minimum(cos_abs, sin_abs)
 
-    def coverage(self, cell_mm: float, sigma_px: float, visible: list[npt.NDArray[np.bool_]]) -> FloatArray:
-        """Coverage of cells ``first + k``, ``(count, h, w)``; line ``first + k``'s beyond-value is exact
-        where ``visible[k]``, and the far pixel's 0 / 1 elsewhere (see the module's docstring)."""
-        cut = cutoff_px(sigma_px)
-        beyond = []
-        for k in range(self.count + 1):
-            d = (self.coord - (self.first + k) * cell_mm) / self.norm
-            out = (d > 0.0).astype(np.float64)  # beyond the cut-off a pixel is on one side (box_step's 1e-13)
-            near = np.flatnonzero((np.abs(d) < cut) & visible[k])
-            if near.size:
-                out.flat[near] = box_step_sorted(
-                    d.flat[near], self.wide.flat[near], self.narrow.flat[near], sigma_px
-                )
-            beyond.append(out)
-        return np.stack([beyond[k] - beyond[k + 1] for k in range(self.count)])
+    def coverage(self, cell_mm: float, sigma_px: float, visible: npt.NDArray[np.bool_]) -> FloatArray:
+        """Coverage of cells ``first + k``, ``(count, n)``; inner line ``first + k``'s beyond-value
+        (``k = 1 .. count - 1``, ``visible[k - 1]``) is exact where visible and the far pixel's 0 / 1
+        elsewhere (see the module's docstring). The outer lines are beyond the cut-off by construction
+        (``first``, ``span``): 1 and 0."""
+        lines = np.arange(1, self.count)[:, None]
+        d = (self.coord - (self.first + lines) * cell_mm) / self.norm  # (count - 1, n), px
+        beyond = np.empty((self.count + 1, d.shape[1]))
+        beyond[0], beyond[-1] = 1.0, 0.0
+        inner = beyond[1:-1]
+        np.greater(d, 0.0, out=inner)  # beyond the cut-off a pixel is on one side (box_step's 1e-13)
+        at = np.flatnonzero((np.abs(d) < cutoff_px(sigma_px)) & visible)
+        if at.size:
+            pixel = at % d.shape[1]
+            inner.flat[at] = box_step_sorted(d.flat[at], self.wide[pixel], self.narrow[pixel], sigma_px)
+        return beyond[:-1] - beyond[1:]
 
 
 def _window_any(change: npt.NDArray[np.bool_], count: int) -> npt.NDArray[np.bool_]:
@@ -154,27 +160,21 @@ def _window_any(change: npt.NDArray[np.bool_], count: int) -> npt.NDArray[np.boo
 
 def _visible_lines(
     change: npt.NDArray[np.bool_], along: _Axis, across: _Axis, across_lo: int, along_lo: int
-) -> list[npt.NDArray[np.bool_]]:
-    """For each line ``along.first + k``: does a colour change cross it within the pixel's cells across?
+) -> npt.NDArray[np.bool_]:
+    """For each inner line ``along.first + k`` (``k = 1 .. count - 1``): does a colour change cross it
+    within the pixel's cells across? ``(count - 1, n)``.
 
     ``change[r, c]`` (board rows along ``across``, columns along ``along``): the cells either side of line
-    ``c`` differ in row ``r``. The two outermost lines are always exact (the sum holds no cell beyond).
+    ``c`` differ in row ``r``.
     """
     windows = _window_any(change, across.count).ravel()
     rows, cols = change.shape
     base = (across.span * rows + (across.first - across_lo)) * cols + (along.first - along_lo)
-    ones = np.ones(base.shape, dtype=bool)
-    inner = [windows.take(base + k) for k in range(1, along.count)]
-    return [ones, *inner, ones]
+    return windows.take(base + np.arange(1, along.count)[:, None])
 
 
-def reflectance(
-    u: FloatArray, v: FloatArray, face: FloatArray, cell_mm: float, sigma_px: float
-) -> FloatArray:
-    """Each pixel's reflectance (0 black .. 1 white) for the target coordinates ``u``, ``v`` (mm) at its
-    centre: the cells' coverage (``box_step`` of the cell lines, blur ``sigma_px``) times their face
-    values, white beyond the face."""
-    cu, cv = _Axis(u, cell_mm, sigma_px), _Axis(v, cell_mm, sigma_px)
+def _board(face: FloatArray, cu: _Axis, cv: _Axis) -> tuple[FloatArray, int, int]:
+    """The face's cells the band's pixels can see, white beyond the face, and its first column and row."""
     pad = max(cu.count, cv.count) + 1
     i_lo, j_lo = int(cu.first.min()) - pad, int(cv.first.min()) - pad
     i_hi, j_hi = int(cu.first.max()) + cu.count + pad, int(cv.first.max()) + cv.count + pad
@@ -183,6 +183,24 @@ def reflectance(
     je, ie = min(board.shape[0], face.shape[0] - j_lo), min(board.shape[1], face.shape[1] - i_lo)
     if je > js and ie > is_:
         board[js:je, is_:ie] = face[js + j_lo : je + j_lo, is_ + i_lo : ie + i_lo]
+    return board, i_lo, j_lo
+
+
+def _band_reflectance(
+    u: FloatArray,
+    v: FloatArray,
+    du_dx: FloatArray,
+    du_dy: FloatArray,
+    dv_dx: FloatArray,
+    dv_dy: FloatArray,
+    face: FloatArray,
+    cell_mm: float,
+    sigma_px: float,
+) -> FloatArray:
+    """The reflectance of a band of pixels (see :func:`scene`), flat arrays of its pixels."""
+    cut = cutoff_px(sigma_px)
+    cu, cv = _Axis(u, du_dx, du_dy, cell_mm, cut), _Axis(v, dv_dx, dv_dy, cell_mm, cut)
+    board, i_lo, j_lo = _board(face, cu, cv)
     col_change = np.ones(board.shape, dtype=bool)  # [j, i]: cells i - 1 and i differ in row j
     col_change[:, 1:] = board[:, 1:] != board[:, :-1]
     row_change = np.ones(board.shape, dtype=bool)  # [j, i]: cells j - 1 and j differ in column i
@@ -191,12 +209,52 @@ def reflectance(
     rows = cv.coverage(cell_mm, sigma_px, _visible_lines(row_change.T, cv, cu, i_lo, j_lo))
     width = board.shape[1]
     flat = board.ravel()
-    base = (cv.first - j_lo) * width + (cu.first - i_lo)
+    base = (cv.first - j_lo) * width + (cu.first - i_lo) + np.arange(cols.shape[0])[:, None]
     out = np.zeros(u.shape)
     for m in range(rows.shape[0]):
-        at = base + m * width
-        line = cols[0] * flat.take(at)
-        for k in range(1, cols.shape[0]):
-            line += cols[k] * flat.take(at + k)
-        out += rows[m] * line
+        out += rows[m] * np.einsum("kn,kn->n", cols, flat.take(base + m * width))
     return out
+
+
+def scene(
+    rays: FloatArray,
+    rotation: FloatArray,
+    translation_mm: FloatArray,
+    face: FloatArray,
+    cell_mm: float,
+    sigma_px: float,
+) -> tuple[FloatArray, FloatArray]:
+    """Each pixel's reflectance (0 black .. 1 white) and the depth (mm) of the target point it sees.
+
+    ``rays``: :func:`pixel_rays`; the target's pose in the camera (``X = rotation X_target + translation``);
+    ``face``: :func:`target_face`, cells ``cell_mm`` square; ``sigma_px``: the optics' blur in focus.
+    The pixel's reflectance is the cells' coverage (``box_step`` of the cell lines) times their face
+    values, white beyond the face. Computed in bands of rows (each band's arrays stay in the processor's
+    cache), the gradients of the target coordinates from a row beyond the band each side, as over the
+    whole image. ValueError when the target's plane does not fill the view (a horizon in it).
+    """
+    R, t = rotation, translation_mm
+    # Target point (u, v) seen by each pixel: (u, v, 1) ~ inv([r1 r2 t]) (x, y, 1).
+    inv_h = np.linalg.inv(np.column_stack([R[:, 0], R[:, 1], t]))
+    height, width = rays.shape[:2]
+    reflect, depth = np.empty((height, width)), np.empty((height, width))
+    band = max(2, _BAND_PIXELS // width)
+    for r0 in range(0, height, band):
+        r1 = min(height, r0 + band)
+        h0, h1 = max(0, r0 - 1), min(height, r1 + 1)  # one row beyond the band each side, for the gradient
+        hom = rays[h0:h1] @ inv_h.T
+        if np.any(hom[..., 2] <= 0):
+            raise ValueError(
+                "the target's plane does not fill the view in front of the camera (horizon in view)"
+            )
+        u, v = hom[..., 0] / hom[..., 2], hom[..., 1] / hom[..., 2]
+        inside = slice(r0 - h0, r1 - h0)
+        du_dy, du_dx = (np.asarray(g)[inside].ravel() for g in np.gradient(u))
+        dv_dy, dv_dx = (np.asarray(g)[inside].ravel() for g in np.gradient(v))
+        u, v = u[inside], v[inside]
+        depth[r0:r1] = (R[2, 0] * u + R[2, 1] * v) + t[2]
+        band_reflect = _band_reflectance(
+            u.ravel(), v.ravel(), du_dx, du_dy, dv_dx, dv_dy, face, cell_mm, sigma_px
+        )
+        reflect[r0:r1] = band_reflect.reshape(r1 - r0, width)
+    return reflect, depth

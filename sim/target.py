@@ -10,6 +10,9 @@ coverage of each cell column and row is the difference of two ``box_step`` value
 over the cells near it of (column coverage) x (row coverage) x (the cell's reflectance). Exact along an
 edge; at a corner the product of the two directions is exact for edges along the pixel grid and, like the
 artifact's land corners, point-symmetric otherwise, so a chessboard corner's image is its true position.
+The kernels (``sim._render_target``) skip the ``box_step`` of cell lines with no colour change across them
+(they drop out of the sum exactly), work in bands of rows, and keep each true camera's pixel rays: the
+same frames, to rounding, for about a third of the CPU.
 
 Defocus: the blur grows with the distance from the focal plane, ``hypot(preset blur, defocus_px_per_mm
 x |depth - focus_mm|)`` as ``sim.world`` has it, point by point for a tilted target: the light of each
@@ -32,7 +35,7 @@ import numpy.typing as npt
 
 from sim._render_camera import F4_DEFOCUS_PX_PER_MM
 from sim._render_geometry import Float32Array, FloatArray
-from sim._render_target import cached_vignetting, pixel_rays, reflectance, target_face
+from sim._render_target import cached_vignetting, pixel_rays, scene, target_face
 from sim.presets import NoisePreset, get_preset
 from station.camcal import STANDARD_TARGET, CharucoTarget, ViewSpec
 from station.camera_model import CameraIntrinsics
@@ -119,18 +122,21 @@ def _defocus(image: FloatArray, sigma_px: FloatArray) -> FloatArray:
     if top > _BLUR_LEVELS[-1]:
         raise ValueError(f"defocus blur of {top:.0f} px is beyond the renderer's {_BLUR_LEVELS[-1]:.0f} px")
     levels = _BLUR_LEVELS[: int(np.searchsorted(_BLUR_LEVELS, top)) + 1]
-    idx = np.clip(np.searchsorted(levels, sigma_px, side="right") - 1, 0, len(levels) - 2)
-    lo, hi = levels[idx], levels[idx + 1]
+    below = np.zeros(sigma_px.shape, dtype=np.int8)  # levels <= sigma (searchsorted's "right" side)
+    for level in levels:
+        below += sigma_px >= level
+    idx = np.clip(below - 1, 0, len(levels) - 2)
+    lo, hi = levels.take(idx), levels.take(idx + 1)
     frac = np.clip((sigma_px - lo) / (hi - lo), 0.0, 1.0)
+    # each pixel's light: 1 - frac of it on its lower level, frac on the next
+    on_lower, on_upper = (image * (1.0 - frac)).astype(np.float32), (image * frac).astype(np.float32)
+    nothing = np.float32(0.0)
     out = np.zeros(image.shape, dtype=np.float64)
     present = np.bincount(idx.ravel(), minlength=len(levels)) > 0  # the pixels' lower levels
     for k, s in enumerate(levels):
         if not (present[k] or (k > 0 and present[k - 1])):
-            continue  # no pixel's weight on this level
-        weight = np.where(idx == k, 1.0 - frac, 0.0) + np.where(idx == k - 1, frac, 0.0)
-        if not weight.any():
-            continue
-        part = (image * weight).astype(np.float32)
+            continue  # no pixel's light on this level
+        part = np.where(idx == k, on_lower, np.where(idx == k - 1, on_upper, nothing))
         if s > 0.0:
             part = cv2.GaussianBlur(part, (0, 0), float(s), borderType=cv2.BORDER_REFLECT)
         out += part
@@ -207,15 +213,14 @@ def render_target(
     p = get_preset(preset) if isinstance(preset, str) else preset
     width, height = intrinsics.image_size
     shape = (height, width)
-    R, t = pose.rotation, pose.translation_mm
-    # Target point (u, v) seen by each pixel: (u, v, 1) ~ inv([r1 r2 t]) (x, y, 1).
-    inv_h = np.linalg.inv(np.column_stack([R[:, 0], R[:, 1], t]))
-    hom = pixel_rays(intrinsics, shape) @ inv_h.T
-    if np.any(hom[..., 2] <= 0):
-        raise ValueError("the target's plane does not fill the view in front of the camera (horizon in view)")
-    u, v = hom[..., 0] / hom[..., 2], hom[..., 1] / hom[..., 2]
-    depth = (R[2, 0] * u + R[2, 1] * v) + t[2]
-    reflect = reflectance(u, v, target_face(target, n), target.square_mm / n, p.blur_sigma_px)
+    reflect, depth = scene(
+        pixel_rays(intrinsics, shape),
+        pose.rotation,
+        pose.translation_mm,
+        target_face(target, n),
+        target.square_mm / n,
+        p.blur_sigma_px,
+    )
     reflect = _defocus(reflect, defocus_px_per_mm * np.abs(depth - focus_mm))
     clean = (p.paint_level_dn + reflect * (p.land_level_dn - p.paint_level_dn)).astype(np.float32)
     clean *= cached_vignetting(shape, float(p.vignetting))
