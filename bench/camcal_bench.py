@@ -17,7 +17,8 @@ by the optics' depth of field (the blur's growth away from focus):
 Then the scale check: a crossed-groove capture measured, compared with the camera model at the working
 distance, with the right focal length and with 1 % errors either way, against the drawing's width
 tolerance and against a scale calibration's. Written to ``bench/results/camcal.json`` too (``--out``).
-Takes about 2 min of CPU per calibration (rendering: 0.5 s a frame).
+Rendering takes about 0.1 s of CPU a frame (``bench.target_render_bench``; 0.3-0.5 s before the render's
+shortcuts), detection and the fit the rest of each calibration.
 """
 
 from __future__ import annotations
