@@ -63,6 +63,7 @@ bench: setup
 	$(BIN)/python -m bench.calibration_session_bench
 	$(BIN)/python -m bench.cross_check_bench
 	$(BIN)/python -m bench.camcal_bench
+	$(BIN)/python -m bench.target_render_bench
 	$(BIN)/python -m bench.page_screens --out $(OUT)/page
 
 clean:

@@ -243,36 +243,22 @@ class Record(FramesMixin):
         """Set the session's state and its error text (None clears it)."""
         if not state:
             raise ValueError("state must be a runner state name, not empty")
-        with self._write() as conn:
-            done = conn.execute(
-                sessions.update()
-                .where(sessions.c.id == session_id)
-                .values(state=state, error=error, updated_at=self._now())
-            )
-            if done.rowcount == 0:
-                raise RecordNotFoundError(session_id, self.url)
+        self._update_session(session_id, state=state, error=error)
 
     def set_identities(self, session_id: str, identities: Mapping[str, Any]) -> None:
         """Replace the session's device identities: what the devices report once connected (a session
         is created before its devices connect, with what the configuration alone says)."""
-        value = json_object(identities, "identities")
-        with self._write() as conn:
-            done = conn.execute(
-                sessions.update()
-                .where(sessions.c.id == session_id)
-                .values(identities=value, updated_at=self._now())
-            )
-            if done.rowcount == 0:
-                raise RecordNotFoundError(session_id, self.url)
+        self._update_session(session_id, identities=json_object(identities, "identities"))
 
     def set_results(self, session_id: str, results: Mapping[str, Any]) -> None:
         """Store the session's results (replacing any earlier ones)."""
-        value = json_object(results, "results")
+        self._update_session(session_id, results=json_object(results, "results"))
+
+    def _update_session(self, session_id: str, **values: Any) -> None:
+        """Set columns of one session's row (and its ``updated_at``); it must exist."""
         with self._write() as conn:
             done = conn.execute(
-                sessions.update()
-                .where(sessions.c.id == session_id)
-                .values(results=value, updated_at=self._now())
+                sessions.update().where(sessions.c.id == session_id).values(**values, updated_at=self._now())
             )
             if done.rowcount == 0:
                 raise RecordNotFoundError(session_id, self.url)
