@@ -40,3 +40,15 @@ def chromium() -> Iterator[Any]:
             yield browser
         finally:
             browser.close()
+
+
+def confirm_prompt(page: Any) -> None:
+    """Confirm the operator prompt the page shows, then wait until its panel is gone or shows another
+    prompt (the next one, opened at once by the same step)."""
+    prompt_id = page.get_attribute("#prompt-panel", "data-prompt-id")
+    page.click("#prompt-confirm")
+    page.wait_for_function(
+        "id => document.querySelector('#prompt-panel').hidden || "
+        "document.querySelector('#prompt-panel').dataset.promptId !== id",
+        arg=prompt_id,
+    )

@@ -12,7 +12,7 @@ from typing import Any
 import pytest
 
 from tests.api.conftest import TOKEN, ServeFactory
-from tests.browser import chromium
+from tests.browser import chromium, confirm_prompt
 
 PATTERN = [[0.0, 0.0], [254.0, 0.0], [254.0, 254.0], [0.0, 254.0]]
 
@@ -51,24 +51,14 @@ def test_a_person_runs_a_validation_in_the_page(make_served: ServeFactory, brows
             break
         message = page.text_content("#prompt-message")
         assert message is not None
-        prompt_id = page.get_attribute("#prompt-panel", "data-prompt-id")
         if message.startswith("Put the artifact's cross on the X-Y table"):  # asked first, no readings
             assert answered == 0
-            page.click("#prompt-confirm")
-            page.wait_for_function(
-                f"document.querySelector('#prompt-panel').hidden || "
-                f"document.querySelector('#prompt-panel').dataset.promptId !== '{prompt_id}'"
-            )
+            confirm_prompt(page)
             continue
         assert "set X to" in message
         x_in = page.input_value("input[name=x_in]")
         assert len(x_in.split(".")[1]) == 4  # inches, to the micrometer's 0.0001 in
-        prompt_id = page.get_attribute("#prompt-panel", "data-prompt-id")
-        page.click("#prompt-confirm")
-        page.wait_for_function(
-            f"document.querySelector('#prompt-panel').hidden || "
-            f"document.querySelector('#prompt-panel').dataset.promptId !== '{prompt_id}'"
-        )
+        confirm_prompt(page)
         answered += 1
     assert page.get_attribute("#state", "data-state") == "succeeded", page.text_content("#session-error")
     assert answered >= len(PATTERN)

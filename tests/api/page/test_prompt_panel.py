@@ -12,6 +12,7 @@ import pytest
 
 from tests.api.conftest import ServeFactory
 from tests.api.page.conftest import PATTERN, api, open_page, start_from_form
+from tests.browser import confirm_prompt
 
 OPEN = "!document.querySelector('#prompt-panel').hidden"
 
@@ -32,13 +33,8 @@ def test_the_prompt_leaves_the_controls_usable_and_cancel_asks_first(
     message = page.text_content("#prompt-message") or ""
     assert message.startswith("Put the artifact's cross on the X-Y table")
     assert "does not know what lies there" in (page.text_content("#prompt-move") or "")
-    first = page.get_attribute("#prompt-panel", "data-prompt-id")
-    page.click("#prompt-confirm")
-    page.wait_for_function(
-        "id => !document.querySelector('#prompt-panel').hidden "
-        "&& document.querySelector('#prompt-panel').dataset.promptId !== id",
-        arg=first,
-    )
+    confirm_prompt(page)
+    page.wait_for_function(OPEN)  # the step's first table prompt
     visit.wait_state("awaiting_operator")
     # nothing modal: no open <dialog>, and the session's controls take real clicks (Playwright refuses to
     # click an element another covers, or one a modal dialog makes inert)
@@ -56,13 +52,7 @@ def test_the_prompt_leaves_the_controls_usable_and_cancel_asks_first(
     while visit.state() != "paused":
         page.wait_for_function(f"{OPEN} || document.querySelector('#state').dataset.state === 'paused'")
         if page.is_visible("#prompt-panel"):
-            prompt_id = page.get_attribute("#prompt-panel", "data-prompt-id")
-            page.click("#prompt-confirm")
-            page.wait_for_function(
-                "id => document.querySelector('#prompt-panel').dataset.promptId !== id "
-                "|| document.querySelector('#prompt-panel').hidden",
-                arg=prompt_id,
-            )
+            confirm_prompt(page)
     assert page.text_content("#progress-text") == "1 / 4 steps: paused"
     page.click("#resume")
     page.wait_for_function(OPEN)

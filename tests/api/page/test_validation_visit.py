@@ -12,6 +12,7 @@ import pytest
 
 from tests.api.conftest import ServeFactory
 from tests.api.page.conftest import FINAL, PATTERN, open_page, start_from_form
+from tests.browser import confirm_prompt
 
 PROMPT_OR_END = (
     "!document.querySelector('#prompt-panel').hidden || "
@@ -33,17 +34,11 @@ def test_a_validation_visit_from_start_to_report_is_clean(make_served: ServeFact
             break
         title = page.text_content("#prompt-title") or ""
         message = page.text_content("#prompt-message") or ""
-        prompt_id = page.get_attribute("#prompt-panel", "data-prompt-id")
         if title == "Operator: what lies on the X-Y table":  # first the cross on the table, then the table
             assert not said
             assert message.startswith("Put the artifact's cross on the X-Y table"), message
             said.append((0, 0, "cross"))
-            page.click("#prompt-confirm")
-            page.wait_for_function(
-                "id => document.querySelector('#prompt-panel').hidden || "
-                "document.querySelector('#prompt-panel').dataset.promptId !== id",
-                arg=prompt_id,
-            )
+            confirm_prompt(page)
             continue
         found = re.search(r"position (\d+) of (\d+)", title)
         assert found, title
@@ -57,13 +52,7 @@ def test_a_validation_visit_from_start_to_report_is_clean(make_served: ServeFact
         assert re.fullmatch(r"\(-?\d+\.\d{4} mm\)", page.text_content("#prompt-field-x_in-mm") or "")
         if move == "overshoot":
             assert "Overshoot before a backwards move" in (page.text_content("#prompt-move") or "")
-        prompt_id = page.get_attribute("#prompt-panel", "data-prompt-id")
-        page.click("#prompt-confirm")
-        page.wait_for_function(
-            "id => document.querySelector('#prompt-panel').hidden || "
-            "document.querySelector('#prompt-panel').dataset.promptId !== id",
-            arg=prompt_id,
-        )
+        confirm_prompt(page)
     assert visit.wait_state(*FINAL) == "succeeded", page.text_content("#session-error")
     # the cross on the table, then 6 prompts for 4 positions: an overshoot before the first and before
     # the move back in -x
