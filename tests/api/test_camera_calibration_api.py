@@ -10,18 +10,10 @@ from __future__ import annotations
 import pytest
 
 from tests.api.conftest import Served, ServeFactory, wait_final
+from tests.sessions.test_camera_calibration_sim import SMALL as SESSION_SMALL
 
-#: a small set of views (10) and bounds it meets (the defaults' 308 views: tests/sessions)
-SMALL = {
-    "square_turns_deg": [-45, 45],
-    "square_passes": 1,
-    "azimuths": 4,
-    "tilted_turns_deg": [0],
-    "sensor_samples": 3,
-    "settle_s": 0.005,
-    "focal_bound_pct": 1.0,
-    "principal_bound_px": 5.0,
-}
+#: the sessions' small set of views (10) with bounds it meets (the defaults' 308 views: tests/sessions)
+SMALL = {**SESSION_SMALL, "focal_bound_pct": 1.0, "principal_bound_px": 5.0}
 
 
 @pytest.mark.timeout(180)
