@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from station.arm_route import max_step_of, split_move, step_limit
+from station.arm_route import Route, max_step_of, route_problems, split_move, step_limit
 from station.camera_model import CameraIntrinsics, read_camera_model
 from station.config import StationConfig, StationDevices
 from station.devices import Camera, DistanceSensor, MotionRejectedError, Robot
@@ -186,12 +186,14 @@ class TeachRig:
             if diagonal in diagonals:
                 continue
             target = (*start[:5], round(start[5] + turn, 3))
-            why = self._route_refused(start, target, step)
-            if why is None:
+            problems = route_problems(
+                self.robot, Route(start, target, tuple(split_move(start, target, step)), False)
+            )
+            if not problems:
                 chosen.append(target)
                 diagonals.add(diagonal)
             else:
-                refused.append(f"{turn:+.0f} deg: {why}")
+                refused.append(f"{turn:+.0f} deg: {problems[0]}")
             if len(chosen) == WRIST_SAMPLES:
                 break
         if len(chosen) < 3:
@@ -202,13 +204,12 @@ class TeachRig:
                 " and teach again"
             )
         chosen.sort(key=lambda q: q[5])
-        path = [start, *chosen, start]
-        legs = [split_move(a, b, step) for a, b in pairwise(path)]
-        here = start
-        for leg in legs:  # all checked before the first move
-            for q in leg:
-                self.robot.check_move(q, start_deg=here)
-                here = q
+        legs = [split_move(a, b, step) for a, b in pairwise([start, *chosen, start])]
+        problems = route_problems(
+            self.robot, Route(start, start, tuple(q for leg in legs for q in leg), False)
+        )
+        if problems:  # all checked before the first move
+            raise MotionRejectedError(f"the wrist's turns are refused, nothing moved: {'; '.join(problems)}")
         samples = []
         try:
             for leg in legs[:-1]:
@@ -219,17 +220,6 @@ class TeachRig:
             for q in split_move(self.joints(), start, step):
                 self.move(q)
         return PlaneSamples(self.sensor_mount, tuple(samples))
-
-    def _route_refused(self, start: Sequence[float], target: Sequence[float], step: float) -> str | None:
-        """Why the robot refuses the way from ``start`` to ``target`` (None: it does not); no I/O."""
-        here = tuple(start)
-        try:
-            for q in split_move(start, target, step):
-                self.robot.check_move(q, start_deg=here)
-                here = q
-        except MotionRejectedError as exc:
-            return str(exc)
-        return None
 
 
 @dataclass(frozen=True)
