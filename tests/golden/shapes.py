@@ -58,17 +58,10 @@ def shape(doc: Any) -> Any:
 def values(doc: Any, volatile: Iterable[str], path: str = "") -> Any:
     """``doc`` with the leaves at ``volatile`` paths (``a.b.*.c``: ``*`` any key or index) replaced by
     their type name; NaN written as the string ``"NaN"`` (the golden file is strict JSON)."""
-    patterns = [p.split(".") for p in volatile]
-
-    def hit(parts: list[str]) -> bool:
-        same = (
-            len(p) == len(parts) and all(a in ("*", b) for a, b in zip(p, parts, strict=True))
-            for p in patterns
-        )
-        return any(same)
+    patterns = list(volatile)
 
     def walk(v: Any, parts: list[str]) -> Any:
-        if parts and hit(parts):
+        if parts and _at(parts, patterns):
             return f"<{type_name(v) if not isinstance(v, dict | list) else type(v).__name__}>"
         if isinstance(v, dict):
             return {k: walk(x, [*parts, k]) for k, x in sorted(v.items())}
@@ -92,7 +85,7 @@ def close(
 ) -> list[str]:
     """Where ``got`` differs from ``want`` (floats within ``rel`` / ``abs_``, or ``loose_rel`` at the
     ``loose`` paths, written as ``values``' volatile ones; the rest exactly)."""
-    if loose and _matches(path, loose):
+    if loose and _at(re.sub(r"\[(\d+)\]", r".\1", path).split(".")[1:], loose, under=True):
         rel, loose = loose_rel, ()
     if isinstance(want, dict):
         if not isinstance(got, dict):
@@ -117,12 +110,14 @@ def close(
     return []
 
 
-def _matches(path: str, patterns: Iterable[str]) -> bool:
-    """Whether ``close``'s ``path`` (``$.a.b[3].c``) lies at or under one of ``patterns`` (``a.b.*``)."""
-    parts = re.sub(r"\[(\d+)\]", r".\1", path).split(".")[1:]
+def _at(parts: list[str], patterns: Iterable[str], *, under: bool = False) -> bool:
+    """Whether the path ``parts`` (keys and indices) is one of ``patterns`` (``a.b.*.c``: ``*`` any key
+    or index), or with ``under`` lies at or under one."""
     for p in patterns:
         want = p.split(".")
-        if len(parts) >= len(want) and all(a in ("*", b) for a, b in zip(want, parts, strict=False)):
+        if (len(parts) >= len(want) if under else len(parts) == len(want)) and all(
+            a in ("*", b) for a, b in zip(want, parts, strict=False)
+        ):
             return True
     return False
 
